@@ -1,0 +1,50 @@
+"""`harv-jax` command line. Sub-commands live in ``harv_jax.commands.*``; errors are one line."""
+
+from __future__ import annotations
+
+import sys
+
+import typer
+
+from harv_jax.commands import simulate
+from harv_jax.errors import UsageError
+
+app = typer.Typer(
+    name="harv-jax",
+    help="F-18/HARV upset and spin recovery: flight model, controllers, RL training, Monte Carlo.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+
+@app.callback()
+def _root() -> None:
+    """F-18/HARV upset and spin recovery: flight model, controllers, RL training, Monte Carlo."""
+
+
+for _module in (simulate,):
+    _module.register(app)
+
+
+def main() -> None:
+    """Console entry point: run the app; turn UsageError/ValueError into a one-line error, exit 2."""
+    try:
+        app(standalone_mode=False)
+    except typer.Exit as e:
+        sys.exit(e.exit_code)
+    except (UsageError, ValueError, FileExistsError, FileNotFoundError) as e:
+        print(f"harv-jax: error: {e}", file=sys.stderr)
+        sys.exit(2)
+    except Exception as e:  # click/typer usage errors (typer vendors its own click)
+        if hasattr(e, "format_message") and hasattr(e, "exit_code"):
+            print(f"harv-jax: error: {e.format_message()}", file=sys.stderr)
+            sys.exit(e.exit_code)
+        if type(e).__name__ == "Abort":
+            sys.exit(1)
+        raise
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,131 @@
+"""`harv-jax simulate`: open-loop trajectory from an initial state with fixed controls."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from harv_jax.errors import UsageError
+
+#: Default initial state (straight and level near trim at 600 ft/s, 25,000 ft).
+DEFAULT_STATE = {
+    "V": 600.0, "alpha": 0.089, "beta": 0.0, "p": 0.0, "q": 0.0, "r": 0.0,
+    "mu": 0.0, "gamma": 0.0, "chi": 0.0, "h": 25000.0,
+}  # fmt: skip
+DEFAULT_CONTROLS = {"de": -0.0045, "da": 0.0, "dr": 0.0}
+
+
+def parse_assignments(text: str, allowed: dict[str, float], what: str) -> dict[str, float]:
+    """Parse ``"name=value,name=value"`` over ``allowed`` defaults; one-line UsageError if bad."""
+    out = dict(allowed)
+    if not text:
+        return out
+    for item in text.split(","):
+        item = item.strip()
+        if not item:
+            continue
+        if "=" not in item:
+            raise UsageError(f"{what} item {item!r} is not NAME=VALUE")
+        name, value = (s.strip() for s in item.split("=", 1))
+        if name not in allowed:
+            raise UsageError(f"unknown {what} name {name!r}; allowed: {', '.join(allowed)}")
+        try:
+            v = float(value)
+        except ValueError:
+            raise UsageError(f"{what} {name}={value!r} is not a number") from None
+        if not math.isfinite(v):
+            raise UsageError(f"{what} {name}={value} is not finite")
+        out[name] = v
+    return out
+
+
+def validate_state(state: dict[str, float]) -> None:
+    """Raise UsageError for a physically meaningless initial state."""
+    if state["V"] <= 0:
+        raise UsageError(f"state V={state['V']} must be > 0 ft/s")
+    for name in ("alpha", "beta"):
+        if abs(state[name]) > math.pi:
+            raise UsageError(f"state {name}={state[name]} rad is outside [-pi, pi]")
+    if abs(state["beta"]) >= math.pi / 2:
+        raise UsageError(f"state beta={state['beta']} rad must be inside (-pi/2, pi/2)")
+
+
+def validate_controls(controls: dict[str, float]) -> None:
+    """Raise UsageError if a deflection is outside its position limit."""
+    from harv_jax.aircraft.params import U_MAX_RAD, U_MIN_RAD
+
+    for i, name in enumerate(("de", "da", "dr")):
+        if not U_MIN_RAD[i] <= controls[name] <= U_MAX_RAD[i]:
+            raise UsageError(
+                f"control {name}={controls[name]} rad is outside [{U_MIN_RAD[i]}, {U_MAX_RAD[i]}]"
+            )
+
+
+def run_simulate(
+    state: dict[str, float],
+    controls: dict[str, float],
+    duration_s: float,
+    dt_s: float,
+    throttle: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Integrate; returns (t [T+1], columns [T+1, 13]) with columns t-less CSV order."""
+    import jax
+    import jax.numpy as jnp
+
+    from harv_jax.aircraft import harv
+    from harv_jax.dynamics import WIND_STATE_NAMES, rollout
+
+    n_steps = int(round(duration_s / dt_s))
+    params = harv(throttle=throttle)
+    x0 = jnp.array([state[n] for n in WIND_STATE_NAMES], dtype=jnp.float32)
+    u = jnp.array([controls["de"], controls["da"], controls["dr"]], dtype=jnp.float32)
+    xs = jax.jit(rollout, static_argnames=())(x0, jnp.broadcast_to(u, (n_steps, 3)), params, dt_s)
+    xs = np.asarray(xs)
+    t = np.arange(n_steps + 1) * dt_s
+    cols = np.concatenate([xs, np.broadcast_to(np.asarray(u), (n_steps + 1, 3))], axis=1)
+    return t, cols
+
+
+def register(app: typer.Typer) -> None:
+    @app.command()
+    def simulate(
+        state: str = typer.Option("", help="Initial state overrides, e.g. 'V=500,alpha=0.3,h=20000' "
+                                  "(ft/s, rad, rad/s, ft). Defaults: near trim at 600 ft/s, 25,000 ft."),
+        controls: str = typer.Option("", help="Fixed deflections, e.g. 'de=-0.3,da=0.1,dr=0.2' (rad)."),
+        duration: float = typer.Option(30.0, help="Duration, s (> 0)."),
+        dt: float = typer.Option(0.01, help="RK4 step, s (0 < dt <= 0.05)."),
+        throttle: float = typer.Option(0.2, help="Fixed throttle in [0, 1]."),
+        out: Path = typer.Option(Path("runs/simulate"), help="Output directory."),
+        force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
+    ) -> None:
+        """Open-loop simulation with fixed controls: writes trajectory.csv and trajectory.png."""
+        from harv_jax.dynamics import CONTROL_NAMES, WIND_STATE_NAMES
+        from harv_jax.outdir import prepare_out_dir
+        from harv_jax.plotting import plot_time_histories
+
+        s = parse_assignments(state, DEFAULT_STATE, "state")
+        c = parse_assignments(controls, DEFAULT_CONTROLS, "control")
+        validate_state(s)
+        validate_controls(c)
+        if not (math.isfinite(duration) and duration > 0):
+            raise UsageError(f"--duration {duration} must be a positive number of seconds")
+        if not (math.isfinite(dt) and 0 < dt <= 0.05):
+            raise UsageError(f"--dt {dt} must be in (0, 0.05] s")
+        if not 0.0 <= throttle <= 1.0:
+            raise UsageError(f"--throttle {throttle} is outside [0, 1]")
+        out_dir = prepare_out_dir(out, force)
+        t, cols = run_simulate(s, c, duration, dt, throttle)
+        names = ("t",) + WIND_STATE_NAMES + CONTROL_NAMES
+        np.savetxt(
+            out_dir / "trajectory.csv", np.column_stack([t, cols]), delimiter=",",
+            header=",".join(names), comments="", fmt="%.8g",
+        )  # fmt: skip
+        columns = {n: cols[:, i] for i, n in enumerate(WIND_STATE_NAMES + CONTROL_NAMES)}
+        plot_time_histories(t, {"open loop": columns}, out_dir / "trajectory.png",
+                            title="harv-jax simulate (open loop)")  # fmt: skip
+        finite = bool(np.all(np.isfinite(cols)))
+        typer.echo(f"wrote {out_dir / 'trajectory.csv'} and trajectory.png "
+                   f"({len(t)} rows{'' if finite else ', NON-FINITE values'})")  # fmt: skip

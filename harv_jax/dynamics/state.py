@@ -1,0 +1,171 @@
+"""State definitions and the coordinate change between the two forms of the model.
+
+Wind-axis state (the paper's model; ``derivatives()``), a [10] vector:
+
+| idx | symbol | meaning                                   | unit  |
+|-----|--------|-------------------------------------------|-------|
+| 0   | V      | true airspeed                             | ft/s  |
+| 1   | alpha  | angle of attack                           | rad   |
+| 2   | beta   | sideslip angle                            | rad   |
+| 3-5 | p,q,r  | body-axis angular rates                   | rad/s |
+| 6   | mu     | wind-axis bank angle                      | rad   |
+| 7   | gamma  | flight-path angle                         | rad   |
+| 8   | chi    | flight-path azimuth                       | rad   |
+| 9   | h      | altitude                                  | ft    |
+
+Integration state (singularity-free; ``BodyState``): body velocity (u, v, w) ft/s, body rates
+(p, q, r) rad/s, attitude quaternion [q0, q1, q2, q3] (scalar first, body -> NED, unit norm), and
+position [x_N ft, y_E ft, h ft] (h positive up). Reference: Stevens, Lewis & Johnson,
+*Aircraft Control and Simulation*, 3rd ed., ch. 1-2.
+
+Where the velocity is vertical (gamma = +-90 deg) the split of the attitude between chi and mu is
+undefined; ``to_wind`` then returns finite values from the 3-2-1 decomposition of the NED->wind
+rotation (mu = atan2(C[1,2], C[2,2]), chi = atan2(v_E, v_N)), which may be arbitrary there.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax.numpy as jnp
+from flax import struct
+
+#: Names of the wind-axis state components, in order.
+WIND_STATE_NAMES: tuple[str, ...] = (
+    "V", "alpha", "beta", "p", "q", "r", "mu", "gamma", "chi", "h",
+)  # fmt: skip
+CONTROL_NAMES: tuple[str, ...] = ("de", "da", "dr")
+WIND_INDEX = {n: i for i, n in enumerate(WIND_STATE_NAMES)}
+
+
+@struct.dataclass
+class BodyState:
+    """Singularity-free integration state (see module docstring for units)."""
+
+    uvw_fps: jnp.ndarray  # [3]
+    pqr_radps: jnp.ndarray  # [3]
+    quat: jnp.ndarray  # [4], scalar first, body -> NED
+    pos_ft: jnp.ndarray  # [3] = [x_N, y_E, h]
+
+
+class AirData(NamedTuple):
+    """Airspeed and aerodynamic angles of a body-axis velocity."""
+
+    vt_fps: jnp.ndarray
+    alpha_rad: jnp.ndarray
+    beta_rad: jnp.ndarray
+
+
+def air_data(uvw_fps: jnp.ndarray) -> AirData:
+    """V, alpha = atan2(w, u) in (-pi, pi], beta = asin(v / V) from a body velocity [3]."""
+    u, v, w = uvw_fps[0], uvw_fps[1], uvw_fps[2]
+    vt = jnp.sqrt(u * u + v * v + w * w)
+    alpha = jnp.arctan2(w, u)
+    beta = jnp.arcsin(jnp.clip(v / jnp.where(vt > 0, vt, 1.0), -1.0, 1.0))
+    return AirData(vt, alpha, beta)
+
+
+def dcm_wind_from_body(alpha: jnp.ndarray, beta: jnp.ndarray) -> jnp.ndarray:
+    """C_wb [3,3]: components in body axes -> components in wind axes."""
+    ca, sa, cb, sb = jnp.cos(alpha), jnp.sin(alpha), jnp.cos(beta), jnp.sin(beta)
+    zero = jnp.zeros_like(alpha)
+    return jnp.array(
+        [
+            [ca * cb, sb, sa * cb],
+            [-ca * sb, cb, -sa * sb],
+            [-sa, zero, ca],
+        ]
+    )
+
+
+def dcm_321(psi: jnp.ndarray, theta: jnp.ndarray, phi: jnp.ndarray) -> jnp.ndarray:
+    """R1(phi) R2(theta) R3(psi) [3,3]: NED components -> rotated-frame components."""
+    cps, sps = jnp.cos(psi), jnp.sin(psi)
+    cth, sth = jnp.cos(theta), jnp.sin(theta)
+    cph, sph = jnp.cos(phi), jnp.sin(phi)
+    return jnp.array(
+        [
+            [cth * cps, cth * sps, -sth],
+            [sph * sth * cps - cph * sps, sph * sth * sps + cph * cps, sph * cth],
+            [cph * sth * cps + sph * sps, cph * sth * sps - sph * cps, cph * cth],
+        ]
+    )
+
+
+def quat_to_dcm(quat: jnp.ndarray) -> jnp.ndarray:
+    """C_nb [3,3] (body -> NED) of a unit quaternion [q0, q1, q2, q3]."""
+    q0, q1, q2, q3 = quat[0], quat[1], quat[2], quat[3]
+    return jnp.array(
+        [
+            [1 - 2 * (q2 * q2 + q3 * q3), 2 * (q1 * q2 - q0 * q3), 2 * (q1 * q3 + q0 * q2)],
+            [2 * (q1 * q2 + q0 * q3), 1 - 2 * (q1 * q1 + q3 * q3), 2 * (q2 * q3 - q0 * q1)],
+            [2 * (q1 * q3 - q0 * q2), 2 * (q2 * q3 + q0 * q1), 1 - 2 * (q1 * q1 + q2 * q2)],
+        ]
+    )
+
+
+def dcm_to_quat(c_nb: jnp.ndarray) -> jnp.ndarray:
+    """Unit quaternion (scalar first, q0 >= 0) of C_nb, branch-free Shepperd's method."""
+    tr = c_nb[0, 0] + c_nb[1, 1] + c_nb[2, 2]
+    cands = jnp.array(
+        [
+            [1 + tr, c_nb[2, 1] - c_nb[1, 2], c_nb[0, 2] - c_nb[2, 0], c_nb[1, 0] - c_nb[0, 1]],
+            [c_nb[2, 1] - c_nb[1, 2], 1 + 2 * c_nb[0, 0] - tr, c_nb[0, 1] + c_nb[1, 0],
+             c_nb[0, 2] + c_nb[2, 0]],
+            [c_nb[0, 2] - c_nb[2, 0], c_nb[0, 1] + c_nb[1, 0], 1 + 2 * c_nb[1, 1] - tr,
+             c_nb[1, 2] + c_nb[2, 1]],
+            [c_nb[1, 0] - c_nb[0, 1], c_nb[0, 2] + c_nb[2, 0], c_nb[1, 2] + c_nb[2, 1],
+             1 + 2 * c_nb[2, 2] - tr],
+        ]
+    )  # fmt: skip
+    k = jnp.argmax(jnp.array([tr, c_nb[0, 0], c_nb[1, 1], c_nb[2, 2]]))
+    q = cands[k]
+    q = q / jnp.linalg.norm(q)
+    return q * jnp.where(q[0] < 0, -1.0, 1.0)
+
+
+def from_wind(x: jnp.ndarray) -> BodyState:
+    """Wind-axis state [10] -> BodyState (x_N = y_E = 0)."""
+    vt, alpha, beta = x[0], x[1], x[2]
+    mu, gamma, chi, h = x[6], x[7], x[8], x[9]
+    c_wb = dcm_wind_from_body(alpha, beta)
+    c_wn = dcm_321(chi, gamma, mu)
+    c_bn = c_wb.T @ c_wn
+    uvw = vt * jnp.array([jnp.cos(alpha) * jnp.cos(beta), jnp.sin(beta), jnp.sin(alpha) * jnp.cos(beta)])
+    zero = jnp.zeros_like(h)
+    return BodyState(
+        uvw_fps=uvw,
+        pqr_radps=x[3:6],
+        quat=dcm_to_quat(c_bn.T),
+        pos_ft=jnp.array([zero, zero, h]),
+    )
+
+
+def to_wind(state: BodyState) -> jnp.ndarray:
+    """BodyState -> wind-axis state [10] (inertial velocity; see module docstring at gamma=+-90)."""
+    vt, alpha, beta = air_data(state.uvw_fps)
+    c_nb = quat_to_dcm(state.quat)
+    v_ned = c_nb @ state.uvw_fps
+    gamma = jnp.arctan2(-v_ned[2], jnp.hypot(v_ned[0], v_ned[1]))
+    chi = jnp.arctan2(v_ned[1], v_ned[0])
+    c_wn = dcm_wind_from_body(alpha, beta) @ c_nb.T
+    mu = jnp.arctan2(c_wn[1, 2], c_wn[2, 2])
+    return jnp.stack(
+        [vt, alpha, beta, state.pqr_radps[0], state.pqr_radps[1], state.pqr_radps[2],
+         mu, gamma, chi, state.pos_ft[2]]
+    )  # fmt: skip
+
+
+def euler_angles(state: BodyState) -> jnp.ndarray:
+    """Body 3-2-1 Euler angles [phi, theta, psi], rad."""
+    c = quat_to_dcm(state.quat)
+    theta = -jnp.arcsin(jnp.clip(c[2, 0], -1.0, 1.0))
+    phi = jnp.arctan2(c[2, 1], c[2, 2])
+    psi = jnp.arctan2(c[1, 0], c[0, 0])
+    return jnp.stack([phi, theta, psi])
+
+
+def is_finite(state: BodyState) -> jnp.ndarray:
+    """True where every component of the state is finite (scalar bool)."""
+    leaves = [state.uvw_fps, state.pqr_radps, state.quat, state.pos_ft]
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(v)) for v in leaves]))
