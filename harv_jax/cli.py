@@ -18,7 +18,6 @@ app = typer.Typer(
 )
 
 
-
 @app.callback()
 def _root() -> None:
     """F-18/HARV upset and spin recovery: flight model, controllers, RL training, Monte Carlo."""

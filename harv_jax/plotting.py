@@ -14,10 +14,26 @@ import numpy as np  # noqa: E402
 from harv_jax.units import DEG_PER_RAD  # noqa: E402
 
 _PANELS = (
-    (("V", "V [ft/s]", 1.0), ("alpha", "alpha [deg]", DEG_PER_RAD), ("beta", "beta [deg]", DEG_PER_RAD)),
-    (("p", "p [deg/s]", DEG_PER_RAD), ("q", "q [deg/s]", DEG_PER_RAD), ("r", "r [deg/s]", DEG_PER_RAD)),
-    (("mu", "mu [deg]", DEG_PER_RAD), ("gamma", "gamma [deg]", DEG_PER_RAD), ("dh", "h - h0 [ft]", 1.0)),
-    (("de", "de [deg]", DEG_PER_RAD), ("da", "da [deg]", DEG_PER_RAD), ("dr", "dr [deg]", DEG_PER_RAD)),
+    (
+        ("V", "V [ft/s]", 1.0),
+        ("alpha", "alpha [deg]", DEG_PER_RAD),
+        ("beta", "beta [deg]", DEG_PER_RAD),
+    ),
+    (
+        ("p", "p [deg/s]", DEG_PER_RAD),
+        ("q", "q [deg/s]", DEG_PER_RAD),
+        ("r", "r [deg/s]", DEG_PER_RAD),
+    ),
+    (
+        ("mu", "mu [deg]", DEG_PER_RAD),
+        ("gamma", "gamma [deg]", DEG_PER_RAD),
+        ("dh", "h - h0 [ft]", 1.0),
+    ),
+    (
+        ("de", "de [deg]", DEG_PER_RAD),
+        ("da", "da [deg]", DEG_PER_RAD),
+        ("dr", "dr [deg]", DEG_PER_RAD),
+    ),
 )
 
 

@@ -49,9 +49,7 @@ assert np.allclose(np.diff(ALPHA_DEG_GRID), ALPHA_STEP_DEG)
 assert ALPHA_DEG_GRID[0] == ALPHA_MIN_DEG and ALPHA_DEG_GRID[-1] == ALPHA_MAX_DEG
 
 #: The table with every per-degree column converted to per radian (cd0, clift0, cm0 unchanged).
-_PER_RAD_SCALE = np.array(
-    [1.0 if c in DIMENSIONLESS_COLUMNS else DEG_PER_RAD for c in AERO_COLUMNS]
-)
+_PER_RAD_SCALE = np.array([1.0 if c in DIMENSIONLESS_COLUMNS else DEG_PER_RAD for c in AERO_COLUMNS])
 AERO_TABLE_PER_RAD: np.ndarray = AERO_TABLE_RAW * _PER_RAD_SCALE
 
 

@@ -92,8 +92,11 @@ def run_simulate(
 def register(app: typer.Typer) -> None:
     @app.command()
     def simulate(
-        state: str = typer.Option("", help="Initial state overrides, e.g. 'V=500,alpha=0.3,h=20000' "
-                                  "(ft/s, rad, rad/s, ft). Defaults: near trim at 600 ft/s, 25,000 ft."),
+        state: str = typer.Option(
+            "",
+            help="Initial state overrides, e.g. 'V=500,alpha=0.3,h=20000' "
+            "(ft/s, rad, rad/s, ft). Defaults: near trim at 600 ft/s, 25,000 ft.",
+        ),
         controls: str = typer.Option("", help="Fixed deflections, e.g. 'de=-0.3,da=0.1,dr=0.2' (rad)."),
         duration: float = typer.Option(30.0, help="Duration, s (> 0)."),
         dt: float = typer.Option(0.01, help="RK4 step, s (0 < dt <= 0.05)."),
