@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import importlib
+import importlib.util
 import sys
 
 import typer
 
-from harv_jax.commands import simulate
 from harv_jax.errors import UsageError
 
 app = typer.Typer(
@@ -23,8 +24,13 @@ def _root() -> None:
     """F-18/HARV upset and spin recovery: flight model, controllers, RL training, Monte Carlo."""
 
 
-for _module in (simulate,):
-    _module.register(app)
+#: Sub-command modules under ``harv_jax.commands``, in help order.
+COMMAND_MODULES = ("simulate", "fly", "train", "mc", "compare", "report", "quickstart")
+
+for _name in COMMAND_MODULES:
+    _full = f"harv_jax.commands.{_name}"
+    if importlib.util.find_spec(_full) is not None:  # commands not built yet are absent
+        importlib.import_module(_full).register(app)
 
 
 def main() -> None:
@@ -38,7 +44,8 @@ def main() -> None:
         sys.exit(2)
     except Exception as e:  # click/typer usage errors (typer vendors its own click)
         if hasattr(e, "format_message") and hasattr(e, "exit_code"):
-            print(f"harv-jax: error: {e.format_message()}", file=sys.stderr)
+            if e.format_message():
+                print(f"harv-jax: error: {e.format_message()}", file=sys.stderr)
             sys.exit(e.exit_code)
         if type(e).__name__ == "Abort":
             sys.exit(1)
