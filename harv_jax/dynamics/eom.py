@@ -22,8 +22,8 @@ import jax.numpy as jnp
 
 from harv_jax.aircraft.aero import coefficients
 from harv_jax.aircraft.params import AircraftParams
-from harv_jax.dynamics.atmosphere import density_slugft3, thrust_lbf
-from harv_jax.dynamics.state import BodyState, air_data, dcm_wind_from_body, quat_to_dcm
+from harv_jax.dynamics.atmosphere import RHO_SL_SLUGFT3, density_slugft3
+from harv_jax.dynamics.state import BodyState
 
 #: Airspeed floor for the non-dimensional rates p b / (2V) etc., ft/s (guards V -> 0 only).
 V_FLOOR_FPS = 1.0
@@ -54,6 +54,7 @@ def forces_moments(
     """Aerodynamic forces and moments plus thrust at one flight condition."""
     rho = density_slugft3(h_ft)
     qbar = 0.5 * rho * vt_fps * vt_fps
+    thrust = params.throttle * params.T_max * (rho / RHO_SL_SLUGFT3) ** 0.7
     c = coefficients(
         alpha_rad, beta_rad, pqr_radps, jnp.maximum(vt_fps, V_FLOOR_FPS), u_rad, params,
         control_forces,
@@ -66,7 +67,7 @@ def forces_moments(
         Lroll=qs * params.b * c.Cl,
         M=qs * params.cbar * c.Cm,
         N=qs * params.b * c.Cn,
-        T=thrust_lbf(params.throttle, params.T_max, h_ft),
+        T=thrust,
     )
 
 
@@ -141,6 +142,11 @@ def body_derivatives(
 ) -> BodyState:
     """Time derivative of the singularity-free integration state.
 
+    Rigid-body equations in body axes: u_dot = F/m + C_bn g - omega x v, the Gamma-form rate
+    equations, quaternion kinematics q_dot = q (x) [0, omega] / 2 and NED position kinematics.
+    Written out component by component (no 3x3 matrices, trig-free direction cosines of alpha and
+    beta): this is the simulator's hot path.
+
     Args:
         state: BodyState (uvw inertial velocity in body axes, rates, quaternion, position).
         u: [3] deflections [de, da, dr], rad.
@@ -153,16 +159,27 @@ def body_derivatives(
     uvw, pqr, quat = state.uvw_fps, state.pqr_radps, state.quat
     h = state.pos_ft[2]
     air = uvw if wind_body_fps is None else uvw - wind_body_fps
-    vt, alpha, beta = air_data(air)
+    ua, va, wa = air[0], air[1], air[2]
+    uw2 = ua * ua + wa * wa
+    vt2 = uw2 + va * va
+    uw, vt = jnp.sqrt(uw2), jnp.sqrt(vt2)
+    uw_safe = jnp.where(uw > 0, uw, 1.0)
+    vt_safe = jnp.where(vt > 0, vt, 1.0)
+    ca, sa = jnp.where(uw > 0, ua / uw_safe, 1.0), wa / uw_safe  # cos, sin alpha
+    cb, sb = jnp.where(vt > 0, uw / vt_safe, 1.0), va / vt_safe  # cos, sin beta
+    alpha, beta = jnp.arctan2(wa, ua), jnp.arctan2(va, uw)
     fm = forces_moments(vt, alpha, beta, pqr, h, u, params)
-    c_wb = dcm_wind_from_body(alpha, beta)
-    f_aero_body = c_wb.T @ jnp.stack([-fm.D, fm.Y, -fm.L])
-    c_nb = quat_to_dcm(quat)
-    gravity_body = c_nb.T @ jnp.stack([0.0 * h, 0.0 * h, params.g])
-    thrust_body = jnp.stack([fm.T, 0.0 * h, 0.0 * h])
-    uvw_dot = (f_aero_body + thrust_body) / params.mass_slug + gravity_body - jnp.cross(pqr, uvw)
-    p, q, r = pqr[0], pqr[1], pqr[2]
+    m, g = params.mass_slug, params.g
+    L, D, Y = fm.L, fm.D, fm.Y
     q0, q1, q2, q3 = quat[0], quat[1], quat[2], quat[3]
+    # third row of C_nb (body -> NED): gravity direction in body axes and the sink rate
+    c31, c32, c33 = 2 * (q1 * q3 - q0 * q2), 2 * (q2 * q3 + q0 * q1), 1 - 2 * (q1 * q1 + q2 * q2)
+    p, q, r = pqr[0], pqr[1], pqr[2]
+    ub, vb, wb = uvw[0], uvw[1], uvw[2]
+    # aerodynamic force (-D, Y, -L) rotated wind -> body (C_wb^T), plus thrust along body x
+    u_dot = (-D * ca * cb - Y * ca * sb + L * sa + fm.T) / m + g * c31 - (q * wb - r * vb)
+    v_dot = (-D * sb + Y * cb) / m + g * c32 - (r * ub - p * wb)
+    w_dot = (-D * sa * cb - Y * sa * sb - L * ca) / m + g * c33 - (p * vb - q * ub)
     quat_dot = 0.5 * jnp.stack(
         [
             -q1 * p - q2 * q - q3 * r,
@@ -171,11 +188,12 @@ def body_derivatives(
             q0 * r + q1 * q - q2 * p,
         ]
     )
-    v_ned = c_nb @ uvw
-    pos_dot = jnp.stack([v_ned[0], v_ned[1], -v_ned[2]])
+    x_n_dot = (1 - 2 * (q2 * q2 + q3 * q3)) * ub + 2 * (q1 * q2 - q0 * q3) * vb + 2 * (q1 * q3 + q0 * q2) * wb
+    y_e_dot = 2 * (q1 * q2 + q0 * q3) * ub + (1 - 2 * (q1 * q1 + q3 * q3)) * vb + 2 * (q2 * q3 - q0 * q1) * wb
+    h_dot = -(c31 * ub + c32 * vb + c33 * wb)
     return BodyState(
-        uvw_fps=uvw_dot,
+        uvw_fps=jnp.stack([u_dot, v_dot, w_dot]),
         pqr_radps=body_rate_derivatives(pqr, fm.Lroll, fm.M, fm.N, params),
         quat=quat_dot,
-        pos_ft=pos_dot,
+        pos_ft=jnp.stack([x_n_dot, y_e_dot, h_dot]),
     )
