@@ -70,6 +70,7 @@ def harv(throttle: float = DEFAULT_THROTTLE, dtype=None) -> AircraftParams:
     if not 0.0 <= throttle <= 1.0:
         raise ValueError(f"throttle={throttle!r} is outside [0, 1]")
     mg = IITM_MASS_GEOMETRY
+    dtype = jnp.result_type(float) if dtype is None else dtype  # strong type: no retrace on mixing
 
     def f(v):
         return jnp.asarray(v, dtype=dtype)

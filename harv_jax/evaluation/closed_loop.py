@@ -1,0 +1,182 @@
+"""Closed-loop rollouts of a ``Controller`` on the flight model (pure, ``lax.scan`` over time).
+
+One step (dt_s, controller at the plant rate):
+
+    x_k      = to_wind(state_k)                               (the controller sees wind-axis states)
+    u_k      = controller.apply(ctrl_state, x_k, reference, key_k)
+    delta_k+1 = actuator_step(delta_k, u_k, params, dt_s)      (position + rate limits, optional lag)
+    state_k+1 = rk4_body_step(state_k, delta_k+1, params, dt_s)  (singularity-free body form)
+
+Everything is vmappable over aircraft (``params``), initial states, references and keys; the number
+of steps is static. A non-finite command is replaced by the current deflection; a non-finite state
+is never propagated: the last finite state is held and ``nonfinite`` is set (the metrics turn it
+into ``Outcome.NONFINITE``). Nothing raises inside jit.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from harv_jax.aircraft.params import AircraftParams
+from harv_jax.control.base import Controller
+from harv_jax.dynamics.actuators import actuator_step
+from harv_jax.dynamics.integrate import DEFAULT_DT_S, rk4_body_step
+from harv_jax.dynamics.state import BodyState, from_wind, is_finite, to_wind
+from harv_jax.evaluation.metrics import Envelope, RecoveryCriterion, RunMetrics, compute_metrics
+
+
+class Trajectory(struct.PyTreeNode):
+    """Recorded closed-loop samples (leading axis: time; extra leading axes under vmap).
+
+    Attributes:
+        t_s: [T] time of each sample from engagement, s.
+        x_wind: [T, 10] wind state at t_s (before the step).
+        delta_rad: [T, 3] deflections applied over the step starting at t_s.
+        u_cmd_rad: [T, 3] controller command at t_s.
+        info: controller diagnostics, each [T, ...].
+    """
+
+    t_s: jnp.ndarray
+    x_wind: jnp.ndarray
+    delta_rad: jnp.ndarray
+    u_cmd_rad: jnp.ndarray
+    info: dict[str, jnp.ndarray]
+
+
+class ClosedLoopResult(struct.PyTreeNode):
+    """Result of ``closed_loop``.
+
+    Attributes:
+        traj: Trajectory of n_steps samples (every ``record_every``-th step if decimated).
+        final_state: BodyState after n_steps.
+        x_final_wind: [10] wind state after n_steps (t = n_steps dt_s).
+        final_delta_rad: [3] deflections after n_steps.
+        final_ctrl_state: controller state after n_steps.
+        nonfinite: bool, a non-finite state or command occurred (the state was then held).
+    """
+
+    traj: Trajectory
+    final_state: BodyState
+    x_final_wind: jnp.ndarray
+    final_delta_rad: jnp.ndarray
+    final_ctrl_state: Any
+    nonfinite: jnp.ndarray
+
+
+def _as_body(x0: BodyState | jnp.ndarray) -> BodyState:
+    return x0 if isinstance(x0, BodyState) else from_wind(x0)
+
+
+def closed_loop(
+    controller: Controller,
+    params: AircraftParams,
+    x0: BodyState | jnp.ndarray,
+    reference_rad: jnp.ndarray,
+    key: jax.Array,
+    n_steps: int,
+    dt_s: float = DEFAULT_DT_S,
+    delta0_rad: jnp.ndarray | None = None,
+    record_every: int = 1,
+    ctrl_state: Any = None,
+) -> ClosedLoopResult:
+    """Fly ``controller`` for ``n_steps`` plant steps.
+
+    Args:
+        controller: Controller(init, apply).
+        params: aircraft (plant and, through ``init``, the controller's model).
+        x0: initial BodyState or wind-axis state [10].
+        reference_rad: [3] [alpha_d, beta_d, mu_d], rad, held constant.
+        key: PRNG key, split once per step for ``apply``.
+        n_steps: number of plant steps (static).
+        dt_s: plant step, s (must equal the controller's own step, e.g. ``SMCConfig.dt_s``).
+        delta0_rad: [3] initial deflections (default 0; e.g. the pro-spin controls).
+        record_every: keep every k-th sample (static; n_steps must be a multiple of it).
+        ctrl_state: initial controller state (default ``controller.init(params)``).
+
+    Returns:
+        ClosedLoopResult.
+    """
+    if n_steps % record_every:
+        raise ValueError(f"n_steps={n_steps} is not a multiple of record_every={record_every}")
+    body0 = _as_body(x0)
+    dtype = body0.uvw_fps.dtype
+    delta0 = jnp.zeros((3,), dtype=dtype) if delta0_rad is None else jnp.asarray(delta0_rad, dtype=dtype)
+    cstate0 = controller.init(params) if ctrl_state is None else ctrl_state
+    reference_rad = jnp.asarray(reference_rad, dtype=dtype)
+
+    def step(carry, key_k):
+        state, delta, cstate, bad = carry
+        x = to_wind(state)
+        u, cstate_new, info = controller.apply(cstate, x, reference_rad, key_k)
+        u_ok = jnp.all(jnp.isfinite(u))
+        u = jnp.where(u_ok, u, delta)
+        delta_new = actuator_step(delta, u, params, dt_s)
+        state_new = rk4_body_step(state, delta_new, params, dt_s)
+        s_ok = is_finite(state_new)
+        state_new = jax.tree.map(lambda a, b: jnp.where(s_ok, a, b), state_new, state)
+        rec = (x, delta_new, u, info)
+        return (state_new, delta_new, cstate_new, bad | ~u_ok | ~s_ok), rec
+
+    def chunk(carry, keys):
+        carry, recs = jax.lax.scan(step, carry, keys)
+        return carry, jax.tree.map(lambda r: r[0], recs)
+
+    keys = jax.random.split(key, n_steps)
+    carry0 = (body0, delta0, cstate0, jnp.asarray(False))
+    if record_every == 1:
+        carry, recs = jax.lax.scan(step, carry0, keys)
+    else:
+        carry, recs = jax.lax.scan(chunk, carry0, keys.reshape((n_steps // record_every, record_every)))
+    state, delta, cstate, bad = carry
+    x_rec, delta_rec, u_rec, info_rec = recs
+    n_rec = n_steps // record_every
+    traj = Trajectory(
+        t_s=jnp.arange(n_rec, dtype=dtype) * (record_every * dt_s),
+        x_wind=x_rec,
+        delta_rad=delta_rec,
+        u_cmd_rad=u_rec,
+        info=info_rec,
+    )
+    return ClosedLoopResult(
+        traj=traj,
+        final_state=state,
+        x_final_wind=to_wind(state),
+        final_delta_rad=delta,
+        final_ctrl_state=cstate,
+        nonfinite=bad,
+    )
+
+
+def evaluate(
+    controller: Controller,
+    params: AircraftParams,
+    x0: BodyState | jnp.ndarray,
+    reference_rad: jnp.ndarray,
+    key: jax.Array,
+    n_steps: int,
+    dt_s: float = DEFAULT_DT_S,
+    delta0_rad: jnp.ndarray | None = None,
+    record_every: int = 1,
+    criterion: RecoveryCriterion | None = None,
+    envelope: Envelope | None = None,
+) -> tuple[RunMetrics, Trajectory]:
+    """Closed-loop run scored by ``compute_metrics`` (full-rate data), trajectory decimated.
+
+    The metrics see the n_steps + 1 states (final state appended) and the n_steps deflections.
+    Jit with ``n_steps``/``record_every`` static and vmap over aircraft/states/references/keys.
+
+    Returns:
+        (RunMetrics, Trajectory with every ``record_every``-th sample).
+    """
+    res = closed_loop(controller, params, x0, reference_rad, key, n_steps, dt_s, delta0_rad, 1)
+    x_all = jnp.concatenate([res.traj.x_wind, res.x_final_wind[None]], axis=0)
+    m = compute_metrics(
+        x_all, res.traj.delta_rad, jnp.asarray(reference_rad, x_all.dtype), params, dt_s,
+        res.nonfinite, criterion, envelope,
+    )  # fmt: skip
+    traj = jax.tree.map(lambda a: a[::record_every], res.traj)
+    return m, traj
