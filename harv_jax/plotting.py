@@ -78,3 +78,59 @@ def plot_time_histories(
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def plot_mc_bands(
+    t_s: np.ndarray, history_rad: np.ndarray, reference_rad: np.ndarray, path: str | Path, title: str = ""
+) -> Path:
+    """Monte Carlo bands of alpha, beta, mu: 5-95 and 25-75 percentiles and the median.
+
+    Args:
+        t_s: [T] sample times, s.
+        history_rad: [N, T, 3] alpha, beta, mu of every run, rad.
+        reference_rad: [3] references, rad.
+        path: PNG path.
+        title: figure title.
+    """
+    fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
+    names = ("alpha", "beta", "mu")
+    for i, (ax, name) in enumerate(zip(axes, names, strict=True)):
+        y = np.degrees(history_rad[:, :, i])
+        p5, p25, p50, p75, p95 = np.nanpercentile(y, [5, 25, 50, 75, 95], axis=0)
+        ax.fill_between(t_s, p5, p95, alpha=0.25, color="C0", lw=0, label="5-95%")
+        ax.fill_between(t_s, p25, p75, alpha=0.45, color="C0", lw=0, label="25-75%")
+        ax.plot(t_s, p50, color="C0", lw=1.2, label="median")
+        ax.axhline(np.degrees(reference_rad[i]), color="k", ls="--", lw=0.8, label="reference")
+        ax.set_ylabel(f"{name} [deg]")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8, loc="upper right")
+    axes[-1].set_xlabel("t [s]")
+    fig.suptitle(title or f"Monte Carlo bands (N = {history_rad.shape[0]})")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_terminal_errors(errors_deg: Mapping[str, np.ndarray], path: str | Path) -> Path:
+    """Histograms of terminal alpha, beta, mu errors (deg) per controller ([N, 3] arrays)."""
+    fig, axes = plt.subplots(3, 1, figsize=(9, 9))
+    for i, (ax, name) in enumerate(zip(axes, ("alpha", "beta", "mu"), strict=True)):
+        vals = [np.clip(e[:, i], -10.0, 10.0) for e in errors_deg.values()]
+        finite = np.concatenate([v[np.isfinite(v)] for v in vals]) if vals else np.zeros(1)
+        lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (-1.0, 1.0)
+        bins = np.linspace(min(lo, -0.5), max(hi, 0.5), 61)
+        for label, v in zip(errors_deg, vals, strict=True):
+            ax.hist(v[np.isfinite(v)], bins=bins, alpha=0.5, label=label)
+        for x in (-0.5, 0.5):
+            ax.axvline(x, color="k", ls=":", lw=0.8)
+        ax.set_xlabel(f"terminal {name} error [deg] (mean over the last 1 s; clipped to +-10)")
+        ax.set_ylabel("runs")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,250 @@
+"""Monte Carlo evaluation: many closed-loop runs as one jitted, vmapped rollout per controller.
+
+Common random numbers: every controller flies the same sampled aircraft and initial states
+(``sample_mc_inputs``), so per-run differences between controllers are paired. Runs are processed
+in chunks of a fixed size by one compiled function (memory stays bounded: full-rate data exist
+only for one chunk; only the decimated alpha/beta/mu histories of every run are kept for the
+percentile bands). With several local devices the runs of a chunk are sharded over them.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+from harv_jax.aircraft.params import AircraftParams
+from harv_jax.control.base import Controller
+from harv_jax.evaluation.closed_loop import closed_loop
+from harv_jax.evaluation.metrics import OUTCOME_NAMES, RunMetrics, compute_metrics, tracking_errors
+from harv_jax.scenarios import sample_table_states
+
+#: State components the paper's Monte Carlo samples (the others start at 0 / h0).
+MC_SAMPLED_STATES = ("V", "alpha", "beta", "p", "q", "r")
+TERMINAL_WINDOW_S = 1.0
+
+
+class MCInputs(struct.PyTreeNode):
+    """What every controller of one Monte Carlo shares (leading axis: run).
+
+    Attributes:
+        x0_wind: [N, 10] initial wind states.
+        params: AircraftParams with [N]-batched leaves.
+        keys: [N] PRNG keys for the controllers (stochastic policies, noise).
+    """
+
+    x0_wind: jnp.ndarray
+    params: AircraftParams
+    keys: jax.Array
+
+
+def sample_mc_inputs(
+    key: jax.Array,
+    n_runs: int,
+    nominal: AircraftParams,
+    randomize: bool = False,
+    sample_all_states: bool = False,
+    h0_ft: float = 25000.0,
+) -> MCInputs:
+    """Sample initial states (paper's reset bounds) and aircraft for ``n_runs`` runs.
+
+    Args:
+        key: PRNG key (split into aircraft, initial-state and controller keys).
+        n_runs: number of runs.
+        nominal: nominal aircraft.
+        randomize: draw mass, inertia and aero-table multipliers per run (the environment's domain
+            randomization ranges; gusts, sensor noise and delay are not applied in the Monte Carlo).
+        sample_all_states: also sample mu and gamma (default: as the paper, only V, alpha, beta,
+            p, q, r are sampled; mu = gamma = 0).
+        h0_ft: initial altitude, ft.
+    """
+    key_aircraft, key_init, key_ctrl = jax.random.split(key, 3)
+    x0 = sample_table_states(key_init, n_runs, h0_ft=h0_ft)
+    if not sample_all_states:
+        x0 = x0.at[:, 6:8].set(0.0)
+    if randomize:
+        from harv_jax.env.config import default_randomization_params
+        from harv_jax.env.randomize import sample_episode
+
+        rand = default_randomization_params(enabled=True)
+        episodes = jax.vmap(lambda k: sample_episode(k, nominal, rand, 0))(
+            jax.random.split(key_aircraft, n_runs)
+        )
+        params = episodes.aircraft
+    else:
+        params = jax.tree.map(lambda a: jnp.broadcast_to(a, (n_runs,) + jnp.shape(a)), nominal)
+    return MCInputs(x0_wind=x0, params=params, keys=jax.random.split(key_ctrl, n_runs))
+
+
+class MCRunOutput(struct.PyTreeNode):
+    """Per-run results (leading axis: run).
+
+    Attributes:
+        metrics: RunMetrics.
+        terminal_error_rad: [3] mean tracking error over the last ``TERMINAL_WINDOW_S`` of the run.
+        history: [T_rec, 3] decimated alpha, beta, mu (rad) for the percentile bands.
+        info_means: controller diagnostics averaged over time (scalars per run).
+    """
+
+    metrics: RunMetrics
+    terminal_error_rad: jnp.ndarray
+    history: jnp.ndarray
+    info_means: dict[str, jnp.ndarray]
+
+
+def _one_run(
+    controller: Controller,
+    params: AircraftParams,
+    x0: jnp.ndarray,
+    key: jax.Array,
+    reference_rad: jnp.ndarray,
+    n_steps: int,
+    dt_s: float,
+    record_every: int,
+) -> MCRunOutput:
+    res = closed_loop(controller, params, x0, reference_rad, key, n_steps, dt_s)
+    x_all = jnp.concatenate([res.traj.x_wind, res.x_final_wind[None]], axis=0)
+    m = compute_metrics(x_all, res.traj.delta_rad, reference_rad, params, dt_s, res.nonfinite)
+    n_term = max(1, int(round(TERMINAL_WINDOW_S / dt_s)))
+    term = jnp.mean(tracking_errors(x_all[-n_term:], reference_rad), axis=0)
+    hist = x_all[:-1:record_every][:, jnp.array([1, 2, 6])]
+    info_means = {
+        k: jnp.mean(v.astype(x_all.dtype))
+        for k, v in res.traj.info.items()
+        if v.ndim == 1  # per-step scalars (flags, weights)
+    }
+    return MCRunOutput(metrics=m, terminal_error_rad=term, history=hist, info_means=info_means)
+
+
+def make_mc_chunk_fn(
+    controller: Controller, n_steps: int, dt_s: float, record_every: int
+) -> Callable[[MCInputs, jnp.ndarray], MCRunOutput]:
+    """A jitted function mapping a chunk of MCInputs (and the reference [3]) to MCRunOutput."""
+
+    def chunk(inputs: MCInputs, reference_rad: jnp.ndarray) -> MCRunOutput:
+        return jax.vmap(
+            lambda p, x0, k: _one_run(controller, p, x0, k, reference_rad, n_steps, dt_s, record_every)
+        )(inputs.params, inputs.x0_wind, inputs.keys)
+
+    return jax.jit(chunk)
+
+
+def _shard(tree: Any, n_dev: int) -> Any:
+    if n_dev <= 1:
+        return tree
+    mesh = Mesh(np.array(jax.local_devices()[:n_dev]), ("runs",))
+    sharding = NamedSharding(mesh, PartitionSpec("runs"))
+    return jax.device_put(tree, sharding)
+
+
+def run_mc(
+    controller: Controller,
+    inputs: MCInputs,
+    reference_rad: jnp.ndarray,
+    n_steps: int,
+    dt_s: float = 0.01,
+    record_every: int = 10,
+    chunk_size: int = 250,
+) -> tuple[MCRunOutput, dict[str, float]]:
+    """Fly ``controller`` on every run of ``inputs``.
+
+    Args:
+        controller: Controller(init, apply).
+        inputs: MCInputs (N runs).
+        reference_rad: [3] [alpha_d, beta_d, mu_d], rad.
+        n_steps: plant steps per run (static).
+        dt_s: plant step, s.
+        record_every: decimation of the stored alpha/beta/mu histories.
+        chunk_size: runs per compiled call (bounds memory); N is padded to a multiple of it.
+
+    Returns:
+        (MCRunOutput with numpy leaves of leading size N, {"compile": s, "run": s}).
+    """
+    n = int(inputs.x0_wind.shape[0])
+    chunk_size = max(1, min(chunk_size, n))
+    n_dev = jax.local_device_count()
+    if n_dev > 1:
+        chunk_size = max(n_dev, chunk_size - chunk_size % n_dev)
+    n_chunks = -(-n // chunk_size)
+    pad = n_chunks * chunk_size - n
+    padded = jax.tree.map(
+        lambda a: jnp.concatenate([a, jnp.repeat(a[:1], pad, axis=0)]) if pad else a, inputs
+    )
+    fn = make_mc_chunk_fn(controller, n_steps, dt_s, record_every)
+    reference_rad = jnp.asarray(reference_rad, dtype=inputs.x0_wind.dtype)
+
+    def take(i):
+        return _shard(jax.tree.map(lambda a: a[i * chunk_size : (i + 1) * chunk_size], padded), n_dev)
+
+    t0 = time.perf_counter()
+    compiled = fn.lower(take(0), reference_rad).compile()
+    t_compile = time.perf_counter() - t0
+    outs = []
+    t0 = time.perf_counter()
+    for i in range(n_chunks):
+        outs.append(jax.device_get(compiled(take(i), reference_rad)))
+    t_run = time.perf_counter() - t0
+    out = jax.tree.map(lambda *xs: np.concatenate(xs, axis=0)[:n], *outs)
+    return out, {"compile": t_compile, "run": t_run}
+
+
+def _pct(a: np.ndarray, q: float) -> float | None:
+    return float(np.percentile(a, q)) if a.size else None
+
+
+def summarize_controller(out: MCRunOutput, wall: dict[str, float]) -> dict[str, Any]:
+    """The per-controller block of ``summary.json`` (names relied on by users' scripts)."""
+    m = out.metrics
+    outcome = np.asarray(m.outcome)
+    n = int(outcome.size)
+    rec = np.asarray(m.recovered)
+    t_rec = np.asarray(m.t_recover_s)[rec]
+    term_deg = np.degrees(np.asarray(out.terminal_error_rad))
+    term = {}
+    for i, name in enumerate(("alpha", "beta", "mu")):
+        e = term_deg[:, i]
+        e = e[np.isfinite(e)]
+        term[name] = {
+            "mean": float(e.mean()) if e.size else None,
+            "std": float(e.std()) if e.size else None,
+            "p5": _pct(e, 5),
+            "p50": _pct(e, 50),
+            "p95": _pct(e, 95),
+            "within_0p5": float(np.mean(np.abs(term_deg[:, i]) <= 0.5)),
+            "within_2": float(np.mean(np.abs(term_deg[:, i]) <= 2.0)),
+        }
+    counts = {name: int((outcome == code).sum()) for code, name in enumerate(OUTCOME_NAMES)}
+    safety = out.info_means.get("safety_intervention")
+    return {
+        "recovery_rate": float(rec.mean()) if n else None,
+        "recovery_time_s": {
+            "mean": float(t_rec.mean()) if t_rec.size else None,
+            "p50": _pct(t_rec, 50),
+            "p95": _pct(t_rec, 95),
+        },
+        "terminal_error_deg": term,
+        "altitude_loss_ft": {
+            "mean": float(np.mean(m.altitude_loss_ft)),
+            "p95": _pct(np.asarray(m.altitude_loss_ft), 95),
+        },
+        "control_tv": {"mean": float(np.mean(np.sum(m.control_tv_rad, axis=-1))), "unit": "rad"},
+        "chatter_index": {"mean": float(np.mean(np.sum(m.chatter_index_rad2, axis=-1))), "unit": "rad^2"},
+        "saturation_fraction": float(np.mean(m.sat_position_fraction)),
+        "rate_saturation_fraction": float(np.mean(m.sat_rate_fraction)),
+        "safety_interventions": float(np.sum(safety)) if safety is not None else 0.0,
+        "outcomes": {
+            "recovered": counts["RECOVERED"],
+            "departed": counts["DEPARTED"] + counts["GROUND_HIT"],
+            "nonfinite": counts["NONFINITE"],
+            "timeout": counts["TIMEOUT"],
+        },
+        "ground_hits_in_departed": counts["GROUND_HIT"],
+        "left_envelope_fraction": float(np.mean(m.left_envelope)),
+        "wall_time_s": {"compile": wall["compile"], "run": wall["run"]},
+    }
