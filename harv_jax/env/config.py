@@ -1,0 +1,358 @@
+"""Configuration of the recovery environment: a frozen static part and traced parameter pytrees.
+
+Static (``EnvConfig``, closed over by ``make_env``; changing it recompiles): step size, episode length,
+delay-buffer size, the master domain-randomization switch, and the *defaults* of a few traced values.
+
+Traced (``EnvParams`` and its parts, passed to ``reset``/``step``; changing them does not recompile):
+reward weights (``RewardParams``), randomization ranges and switches (``RandomizationParams``),
+reset bounds (``ResetParams``), the flight envelope (``EnvelopeParams``), the initial altitude, and the
+spin-entry reset states.
+
+Sources: paper Section IV-A (reward, weights, terminal reward) and its Tables (observation/action ranges,
+reset bounds); ``../shared/MODEL.md`` ("Envelope (terminations) and reset bounds").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from harv_jax.aircraft.params import DEFAULT_THROTTLE, AircraftParams, harv
+from harv_jax.units import RAD_PER_DEG
+
+#: Names of the observation components, in order (paper: s = {V, alpha, beta, p, q, r, mu, gamma,
+#: alpha_d, beta_d, mu_d}); units ft/s, rad, rad/s.
+OBS_NAMES: tuple[str, ...] = (
+    "V", "alpha", "beta", "p", "q", "r", "mu", "gamma", "alpha_d", "beta_d", "mu_d",
+)  # fmt: skip
+OBSERVATION_SIZE = len(OBS_NAMES)
+ACTION_SIZE = 3
+#: Number of leading observation components that are measured (sensor noise applies to them).
+NUM_MEASURED = 8
+
+_PI = math.pi
+_RATE_MAX_RADPS = 10.0 * _PI
+#: Observation bounds (paper Table "Observation and Action Space"); the targets get the alpha range
+#: (alpha_d) and [-pi, pi] (beta_d, mu_d). Observations are clipped to these bounds, so they only bind
+#: on a terminal observation (the envelope below is the same box) or through sensor noise at the edge.
+OBS_LOW = np.array(
+    [0.0, -0.244, -_PI, -_RATE_MAX_RADPS, -_RATE_MAX_RADPS, -_RATE_MAX_RADPS, -_PI, -1.745,
+     -0.244, -_PI, -_PI], dtype=np.float32,
+)  # fmt: skip
+OBS_HIGH = np.array(
+    [2000.0, 1.571, _PI, _RATE_MAX_RADPS, _RATE_MAX_RADPS, _RATE_MAX_RADPS, _PI, 1.745,
+     1.571, _PI, _PI], dtype=np.float32,
+)  # fmt: skip
+
+#: Default initial altitude, ft. The paper starts its altitude record at 0 ft only to show the loss of
+#: altitude; the model needs a true altitude for the air density, and 25,000 ft is MODEL.md's reference.
+DEFAULT_H0_FT = 25_000.0
+#: Default altitude floor, ft: the ground. The paper has no floor; set ``h_floor_ft=-inf`` to disable.
+DEFAULT_H_FLOOR_FT = 0.0
+
+#: Placeholder spin-entry state (wind axes [10]): level trim at 400 ft/s, 25,000 ft (MODEL.md trim table,
+#: alpha = 11.1793 deg). Replaced by real spin-entry states from ``harv_jax.scenarios`` by the caller.
+PLACEHOLDER_SPIN_STATE = np.array(
+    [400.0, 11.1793 * RAD_PER_DEG, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, DEFAULT_H0_FT]
+)
+#: Default half-widths of the uniform perturbation added to a spin-entry state, same order and units
+#: as the wind-axis state: V 10 ft/s; alpha, beta 0.02 rad; p, q, r 0.05 rad/s; mu, gamma 0.02 rad;
+#: chi and h unperturbed.
+DEFAULT_SPIN_PERTURB = np.array([10.0, 0.02, 0.02, 0.05, 0.05, 0.05, 0.02, 0.02, 0.0, 0.0])
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvConfig:
+    """Static configuration (sets shapes, loop lengths and which code is traced).
+
+    Attributes:
+        dt_s: control and integration step, s (paper: 0.01).
+        episode_steps: time limit in steps, a truncation (paper: 20,000 steps = 200 s).
+        max_delay_steps: size of the actuator-command delay buffer minus one; the per-episode delay is
+            drawn in 0..min(RandomizationParams.delay_max_steps, max_delay_steps).
+        domain_randomization: master switch. False traces none of the randomization code (nominal
+            aircraft, no gust, no noise, no delay) whatever ``RandomizationParams`` says.
+        throttle: fixed throttle of the nominal aircraft in [0, 1].
+        h0_ft: default initial altitude, ft (copied into ``EnvParams.h0_ft``).
+        h_floor_ft: default altitude floor, ft (copied into ``EnvParams.envelope.h_floor_ft``).
+        discount: default PBRS discount Gamma (= the PPO discount; paper 0.99).
+    """
+
+    dt_s: float = 0.01
+    episode_steps: int = 20_000
+    max_delay_steps: int = 3
+    domain_randomization: bool = True
+    throttle: float = DEFAULT_THROTTLE
+    h0_ft: float = DEFAULT_H0_FT
+    h_floor_ft: float = DEFAULT_H_FLOOR_FT
+    discount: float = 0.99
+
+    def __post_init__(self) -> None:
+        if not self.dt_s > 0:
+            raise ValueError(f"dt_s={self.dt_s!r} must be > 0")
+        if self.episode_steps < 1:
+            raise ValueError(f"episode_steps={self.episode_steps!r} must be >= 1")
+        if self.max_delay_steps < 0:
+            raise ValueError(f"max_delay_steps={self.max_delay_steps!r} must be >= 0")
+        if not 0.0 < self.discount <= 1.0:
+            raise ValueError(f"discount={self.discount!r} must be in (0, 1]")
+
+
+@struct.dataclass
+class RewardParams:
+    """Reward weights (paper Section IV-A). All traced scalars.
+
+    Attributes:
+        w_p1: phase-1 weight of the coupling term |pq| + |qr| + |pr| (paper 0.3).
+        w_p21: phase-2 weight of e_alpha * q, also the rate weight of the potential (paper 0.3).
+        w_p22: phase-2 weight of ||omega||^2 + coupling (paper 0.05).
+        k_blend: logistic blend steepness, s/rad (paper 10).
+        omega_th_radps: blend threshold on ||omega||, rad/s (paper 0.17).
+        bonus_alpha, bonus_beta, bonus_mu: bonuses when |e| < bonus_tol_rad (paper +5, +3, +3).
+        bonus_tol_rad: bonus tolerance, rad (paper 0.017).
+        action_weight: weight of the action penalty -sum(a_i^2) on the normalized action (paper 1).
+        discount: PBRS Gamma (paper: the PPO discount, 0.99).
+        shaping_weight: multiplier of the PBRS term (1 = paper, 0 disables shaping).
+        terminal_reward: reward on leaving the envelope (paper -1000).
+    """
+
+    w_p1: jnp.ndarray
+    w_p21: jnp.ndarray
+    w_p22: jnp.ndarray
+    k_blend: jnp.ndarray
+    omega_th_radps: jnp.ndarray
+    bonus_alpha: jnp.ndarray
+    bonus_beta: jnp.ndarray
+    bonus_mu: jnp.ndarray
+    bonus_tol_rad: jnp.ndarray
+    action_weight: jnp.ndarray
+    discount: jnp.ndarray
+    shaping_weight: jnp.ndarray
+    terminal_reward: jnp.ndarray
+
+
+def paper_reward_params(discount: float = 0.99, dtype=None) -> RewardParams:
+    """The paper's reward weights (Section IV-A)."""
+
+    def f(v):
+        return jnp.asarray(v, dtype=dtype or jnp.result_type(float))
+
+    return RewardParams(
+        w_p1=f(0.3), w_p21=f(0.3), w_p22=f(0.05), k_blend=f(10.0), omega_th_radps=f(0.17),
+        bonus_alpha=f(5.0), bonus_beta=f(3.0), bonus_mu=f(3.0), bonus_tol_rad=f(0.017),
+        action_weight=f(1.0), discount=f(discount), shaping_weight=f(1.0), terminal_reward=f(-1000.0),
+    )  # fmt: skip
+
+
+@struct.dataclass
+class RandomizationParams:
+    """Domain-randomization switches and ranges, resampled every episode. All traced.
+
+    Each ``*_on`` is a bool switch; a switched-off item takes its nominal value. Ranges are half-widths
+    of uniform draws of multiplicative factors ``1 + frac * U(-1, 1)`` unless stated.
+
+    Attributes:
+        mass_on: randomize mass and inertias.
+        mass_frac: mass factor half-width (default 0.10, i.e. +-10%).
+        inertia_frac: Ixx, Iyy, Izz, Ixz factor half-width, each independent (default 0.10).
+        aero_on: randomize aero-table column multipliers (``AircraftParams.aero_scale``).
+        aero_damping_frac: rate-derivative columns (cy_p, cy_r, croll_p, croll_r, cn_p, cn_r, cd_q,
+            clift_q, cm_q), default 0.20.
+        aero_control_frac: control-effectiveness columns (all *_da, *_del/_der, *_dr), default 0.15.
+        aero_static_frac: static-stability columns (cy_b, croll_b, cn_b, cm0), default 0.10.
+        aero_basic_frac: basic lift and drag (clift0, cd0), default 0.05.
+        gust_on: body-axis Ornstein-Uhlenbeck gust.
+        gust_std_max_fps: per-episode stationary gust std per axis ~ U(0, this), ft/s (default 10).
+        gust_tau_min_s, gust_tau_max_s: per-episode gust correlation time ~ U(min, max), s (default
+            1-10 s: tau = L/V with the Dryden length L = 1750 ft above 2000 ft, MIL-HDBK-1797, spans
+            1.2-17 s over V = 100-1500 ft/s).
+        noise_on: additive white Gaussian sensor noise on the 8 measured observations.
+        noise_std_max: [8] per-channel noise std; the per-episode std is U(0, 1) times this
+            (default V 2 ft/s; alpha, beta 0.005 rad; p, q, r 0.01 rad/s; mu 0.01 rad; gamma 0.005 rad).
+        delay_on: actuator command delay.
+        delay_max_steps: per-episode delay ~ randint(0, delay_max_steps) steps inclusive (default 2 =
+            up to 20 ms at dt 0.01 s), capped at ``EnvConfig.max_delay_steps``.
+    """
+
+    mass_on: jnp.ndarray
+    mass_frac: jnp.ndarray
+    inertia_frac: jnp.ndarray
+    aero_on: jnp.ndarray
+    aero_damping_frac: jnp.ndarray
+    aero_control_frac: jnp.ndarray
+    aero_static_frac: jnp.ndarray
+    aero_basic_frac: jnp.ndarray
+    gust_on: jnp.ndarray
+    gust_std_max_fps: jnp.ndarray
+    gust_tau_min_s: jnp.ndarray
+    gust_tau_max_s: jnp.ndarray
+    noise_on: jnp.ndarray
+    noise_std_max: jnp.ndarray
+    delay_on: jnp.ndarray
+    delay_max_steps: jnp.ndarray
+
+
+#: Default sensor-noise std per measured channel [V, alpha, beta, p, q, r, mu, gamma] (ft/s, rad, rad/s).
+DEFAULT_NOISE_STD_MAX = np.array([2.0, 0.005, 0.005, 0.01, 0.01, 0.01, 0.01, 0.005])
+
+
+def default_randomization_params(enabled: bool = True, dtype=None) -> RandomizationParams:
+    """Documented default ranges; ``enabled`` sets every switch."""
+    dtype = dtype or jnp.result_type(float)
+
+    def f(v):
+        return jnp.asarray(v, dtype=dtype)
+
+    on = jnp.asarray(enabled, dtype=bool)
+    return RandomizationParams(
+        mass_on=on, mass_frac=f(0.10), inertia_frac=f(0.10),
+        aero_on=on, aero_damping_frac=f(0.20), aero_control_frac=f(0.15), aero_static_frac=f(0.10),
+        aero_basic_frac=f(0.05),
+        gust_on=on, gust_std_max_fps=f(10.0), gust_tau_min_s=f(1.0), gust_tau_max_s=f(10.0),
+        noise_on=on, noise_std_max=f(DEFAULT_NOISE_STD_MAX),
+        delay_on=on, delay_max_steps=jnp.asarray(2, dtype=jnp.int32),
+    )  # fmt: skip
+
+
+@struct.dataclass
+class ResetParams:
+    """Uniform reset bounds (paper Table "Bounds for random initialization"). Traced.
+
+    Attributes:
+        low, high: [8] bounds of [V ft/s, alpha, beta, p, q, r, mu, gamma] (rad, rad/s).
+        alpha_d_low_rad, alpha_d_high_rad: target angle-of-attack range, rad (paper -0.085..0.68).
+        beta_d_rad, mu_d_rad: fixed sideslip and bank targets, rad (paper 0).
+    """
+
+    low: jnp.ndarray
+    high: jnp.ndarray
+    alpha_d_low_rad: jnp.ndarray
+    alpha_d_high_rad: jnp.ndarray
+    beta_d_rad: jnp.ndarray
+    mu_d_rad: jnp.ndarray
+
+
+#: Paper reset bounds for [V, alpha, beta, p, q, r, mu, gamma].
+RESET_LOW = np.array([100.0, -0.175, -0.262, -2.094, -1.047, -0.524, -3.142, -1.047])
+RESET_HIGH = np.array([1500.0, 1.047, 0.262, 2.094, 1.047, 0.524, 3.142, 1.047])
+
+
+def paper_reset_params(dtype=None) -> ResetParams:
+    """The paper's reset bounds."""
+
+    def f(v):
+        return jnp.asarray(v, dtype=dtype or jnp.result_type(float))
+
+    return ResetParams(
+        low=f(RESET_LOW), high=f(RESET_HIGH), alpha_d_low_rad=f(-0.085), alpha_d_high_rad=f(0.68),
+        beta_d_rad=f(0.0), mu_d_rad=f(0.0),
+    )  # fmt: skip
+
+
+@struct.dataclass
+class EnvelopeParams:
+    """Flight envelope; leaving it terminates the episode (paper observation ranges). Traced.
+
+    Attributes:
+        v_min_fps, v_max_fps: terminate when V <= v_min or V > v_max (paper V in (0, 2000]).
+        alpha_min_rad, alpha_max_rad: terminate outside [alpha_min, alpha_max] (paper -0.244, 1.571).
+        rate_max_radps: terminate when any |p|, |q|, |r| > this (paper 10 pi).
+        gamma_max_rad: terminate when |gamma| > this (paper 1.745). Note: gamma from ``to_wind`` lies in
+            [-pi/2, pi/2], so the paper's bound cannot bind; it is kept for fidelity and for lower values.
+        h_floor_ft: terminate when h < this, ft (default 0 = ground; -inf disables).
+    """
+
+    v_min_fps: jnp.ndarray
+    v_max_fps: jnp.ndarray
+    alpha_min_rad: jnp.ndarray
+    alpha_max_rad: jnp.ndarray
+    rate_max_radps: jnp.ndarray
+    gamma_max_rad: jnp.ndarray
+    h_floor_ft: jnp.ndarray
+
+
+def paper_envelope_params(h_floor_ft: float = DEFAULT_H_FLOOR_FT, dtype=None) -> EnvelopeParams:
+    """The paper's envelope plus an altitude floor."""
+
+    def f(v):
+        return jnp.asarray(v, dtype=dtype or jnp.result_type(float))
+
+    return EnvelopeParams(
+        v_min_fps=f(0.0), v_max_fps=f(2000.0), alpha_min_rad=f(-0.244), alpha_max_rad=f(1.571),
+        rate_max_radps=f(_RATE_MAX_RADPS), gamma_max_rad=f(1.745), h_floor_ft=f(h_floor_ft),
+    )  # fmt: skip
+
+
+@struct.dataclass
+class EnvParams:
+    """Everything traced that ``reset``/``step`` read (vmap or sweep it without recompiling).
+
+    Attributes:
+        aircraft: nominal aircraft; per-episode draws are made around it.
+        reward: reward weights.
+        randomization: domain-randomization switches and ranges.
+        reset: uniform reset bounds.
+        envelope: termination envelope.
+        h0_ft: initial altitude of uniform resets, ft.
+        spin_states: [K, 10] wind-axis spin-entry states (their own h is used).
+        spin_reset_prob: probability that a reset starts from a spin-entry state (default 0).
+        spin_perturb: [10] half-widths of the uniform perturbation of a spin-entry state.
+    """
+
+    aircraft: AircraftParams
+    reward: RewardParams
+    randomization: RandomizationParams
+    reset: ResetParams
+    envelope: EnvelopeParams
+    h0_ft: jnp.ndarray
+    spin_states: jnp.ndarray
+    spin_reset_prob: jnp.ndarray
+    spin_perturb: jnp.ndarray
+
+
+def strip_weak_type(tree):
+    """Make every leaf a strongly typed array (avoids retraces and scan-carry dtype mismatches)."""
+
+    def f(leaf):
+        leaf = jnp.asarray(leaf)
+        return leaf.astype(leaf.dtype)
+
+    return jax.tree.map(f, tree)
+
+
+def default_params(config: EnvConfig | None = None, dtype=None) -> EnvParams:
+    """Default traced parameters: the paper's reward, reset bounds and envelope; documented ranges.
+
+    Args:
+        config: static config whose ``throttle``, ``h0_ft``, ``h_floor_ft`` and ``discount`` seed the
+            traced values (default ``EnvConfig()``).
+        dtype: float dtype (default: jax's default float).
+
+    Returns:
+        EnvParams with strongly typed leaves.
+    """
+    config = config or EnvConfig()
+    dtype = dtype or jnp.result_type(float)
+
+    def f(v):
+        return jnp.asarray(v, dtype=dtype)
+
+    spin = PLACEHOLDER_SPIN_STATE.copy()
+    spin[9] = config.h0_ft
+    params = EnvParams(
+        aircraft=harv(throttle=config.throttle, dtype=dtype),
+        reward=paper_reward_params(config.discount, dtype),
+        randomization=default_randomization_params(True, dtype),
+        reset=paper_reset_params(dtype),
+        envelope=paper_envelope_params(config.h_floor_ft, dtype),
+        h0_ft=f(config.h0_ft),
+        spin_states=f(spin[None, :]),
+        spin_reset_prob=f(0.0),
+        spin_perturb=f(DEFAULT_SPIN_PERTURB),
+    )
+    return strip_weak_type(params)

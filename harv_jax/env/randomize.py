@@ -1,0 +1,223 @@
+"""Per-episode domain randomization: aircraft parameters, gust, sensor noise, actuator delay.
+
+Everything drawn here lives in an ``EpisodeParams`` pytree held in the env state, so new draws never
+recompile; the env draws a fresh one at every reset (every episode, not once per env slot).
+
+Draws (``RandomizationParams`` holds the switches and ranges; defaults documented there):
+
+| quantity                    | draw                                                      |
+|-----------------------------|-----------------------------------------------------------|
+| mass                        | m0 (1 + mass_frac U(-1, 1))                               |
+| Ixx, Iyy, Izz, Ixz          | each I0 (1 + inertia_frac U(-1, 1)), independent          |
+| aero_scale[33]              | per column 1 + frac_group U(-1, 1); *_der shares *_del's  |
+| gust std, correlation time  | U(0, gust_std_max_fps), U(gust_tau_min_s, gust_tau_max_s) |
+| sensor-noise std [8]        | U(0, 1) noise_std_max (one factor per episode)            |
+| actuator delay, steps       | randint(0, delay_max_steps) inclusive, capped             |
+
+The env draws all of these from 16-bit uniforms (``uniform16``: two per PRNG word, resolution 1/65536).
+
+Aero groups (columns of ``AERO_COLUMNS``): damping = rate derivatives; control = control-surface
+derivatives (the symmetric-stabilator pair *_del/*_der gets one common factor, so that the published
+cancellation cn_del + cn_der ~ 0 at low alpha is kept); static = cy_b, croll_b, cn_b, cm0; basic =
+clift0, cd0. Independent inertia factors can break the triangle inequality Ixx + Iyy >= Izz (the
+tensor stays positive definite; the equations of motion remain well defined).
+
+Gust: a first-order Gauss-Markov (Ornstein-Uhlenbeck) process per body axis, the first-order
+approximation of the Dryden spectrum, stepped exactly:
+g_{k+1} = a g_k + std sqrt(1 - a^2) n_k, a = exp(-dt / tau), n_k ~ N(0, I). It starts in its stationary
+distribution. Being defined in body axes, it turns with the aircraft (a simplification).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from harv_jax.aircraft.data_harv import AERO_COLUMNS
+from harv_jax.aircraft.params import AircraftParams
+from harv_jax.env.config import NUM_MEASURED, RandomizationParams
+
+_DAMPING = ("cy_p", "cy_r", "croll_p", "croll_r", "cn_p", "cn_r", "cd_q", "clift_q", "cm_q")
+_STATIC = ("cy_b", "croll_b", "cn_b", "cm0")
+_BASIC = ("clift0", "cd0")
+_CONTROL = tuple(c for c in AERO_COLUMNS if c not in _DAMPING + _STATIC + _BASIC)
+#: Aero-scale groups: name -> column names. Together they cover every column exactly once.
+AERO_GROUPS: dict[str, tuple[str, ...]] = {
+    "damping": _DAMPING,
+    "control": _CONTROL,
+    "static": _STATIC,
+    "basic": _BASIC,
+}
+assert sorted(sum(AERO_GROUPS.values(), ())) == sorted(AERO_COLUMNS)
+assert all(c.endswith(("_da", "_del", "_der", "_dr")) for c in _CONTROL)
+
+_COL = {c: i for i, c in enumerate(AERO_COLUMNS)}
+#: [33] group index of each column (0 damping, 1 control, 2 static, 3 basic).
+_GROUP_OF_COLUMN = np.array(
+    [next(g for g, cols in enumerate(AERO_GROUPS.values()) if c in cols) for c in AERO_COLUMNS]
+)
+#: [33] source column of each column's factor: *_der takes its *_del partner's factor.
+_FACTOR_SOURCE = np.array(
+    [_COL[c[: -len("_der")] + "_del"] if c.endswith("_der") else _COL[c] for c in AERO_COLUMNS]
+)
+
+
+@struct.dataclass
+class EpisodeParams:
+    """What is drawn per episode (traced; one per env).
+
+    Attributes:
+        aircraft: the episode's aircraft (mass, inertia, aero_scale randomized).
+        delay_steps: int32 actuator command delay, steps.
+        gust_std_fps: stationary gust std per body axis, ft/s (0 = no gust).
+        gust_tau_s: gust correlation time, s.
+        noise_std: [8] sensor-noise std of [V, alpha, beta, p, q, r, mu, gamma] (ft/s, rad, rad/s).
+    """
+
+    aircraft: AircraftParams
+    delay_steps: jnp.ndarray
+    gust_std_fps: jnp.ndarray
+    gust_tau_s: jnp.ndarray
+    noise_std: jnp.ndarray
+
+
+def nominal_episode(nominal: AircraftParams, rand: RandomizationParams) -> EpisodeParams:
+    """Episode parameters with no randomization (nominal aircraft, no delay, gust or noise)."""
+    dtype = nominal.mass_slug.dtype
+    zero = jnp.zeros((), dtype=dtype)
+    return EpisodeParams(
+        aircraft=nominal,
+        delay_steps=jnp.zeros((), dtype=jnp.int32),
+        gust_std_fps=zero,
+        gust_tau_s=jnp.asarray(rand.gust_tau_max_s, dtype=dtype),
+        noise_std=jnp.zeros((NUM_MEASURED,), dtype=dtype),
+    )
+
+
+#: Number of U(0, 1) draws ``episode_from_uniform`` consumes: mass 1, inertia 4, aero 33, delay 1,
+#: gust std 1, gust tau 1, noise 1.
+NUM_EPISODE_UNIFORMS = 1 + 4 + len(AERO_COLUMNS) + 4
+#: Number of N(0, 1) draws per step: gust 3, sensor noise NUM_MEASURED.
+NUM_STEP_NORMALS = 3 + NUM_MEASURED
+
+
+def _sym(u01: jnp.ndarray) -> jnp.ndarray:
+    """U(0, 1) -> U(-1, 1)."""
+    return 2.0 * u01 - 1.0
+
+
+def aero_scale_from_uniform(u01: jnp.ndarray, rand: RandomizationParams) -> jnp.ndarray:
+    """[33] aero-table multipliers from [33] U(0, 1) draws (ones when ``aero_on`` is False)."""
+    fracs = jnp.stack(
+        [rand.aero_damping_frac, rand.aero_control_frac, rand.aero_static_frac, rand.aero_basic_frac]
+    )
+    u = _sym(u01)[_FACTOR_SOURCE]
+    scale = 1.0 + fracs[_GROUP_OF_COLUMN] * u
+    return jnp.where(rand.aero_on, scale, jnp.ones_like(scale))
+
+
+def episode_from_uniform(
+    u01: jnp.ndarray, nominal: AircraftParams, rand: RandomizationParams, max_delay_steps: int
+) -> EpisodeParams:
+    """One episode's parameters from ``NUM_EPISODE_UNIFORMS`` U(0, 1) draws.
+
+    Drawing all uniforms in one call keeps the compiled graph small (each PRNG call site compiles its
+    own hash); ``sample_episode`` is the keyed form.
+
+    Args:
+        u01: [NUM_EPISODE_UNIFORMS] U(0, 1) draws.
+        nominal: nominal aircraft.
+        rand: switches and ranges.
+        max_delay_steps: static cap of the delay (the env's buffer size minus one).
+
+    Returns:
+        EpisodeParams (switched-off items at their nominal values).
+    """
+    n_aero = len(AERO_COLUMNS)
+    u_mass, u_inertia, u_aero = u01[0], u01[1:5], u01[5 : 5 + n_aero]
+    u_delay, u_gstd, u_gtau, u_noise = (u01[5 + n_aero + i] for i in range(4))
+    one = jnp.ones_like(u_mass)
+    mass_factor = jnp.where(rand.mass_on, 1.0 + rand.mass_frac * _sym(u_mass), one)
+    inertia = jnp.where(rand.mass_on, 1.0 + rand.inertia_frac * _sym(u_inertia), jnp.ones_like(u_inertia))
+    aircraft = nominal.replace(
+        mass_slug=nominal.mass_slug * mass_factor,
+        Ixx=nominal.Ixx * inertia[0],
+        Iyy=nominal.Iyy * inertia[1],
+        Izz=nominal.Izz * inertia[2],
+        Ixz=nominal.Ixz * inertia[3],
+        aero_scale=nominal.aero_scale * aero_scale_from_uniform(u_aero, rand),
+    )
+    delay_hi = jnp.clip(rand.delay_max_steps, 0, max_delay_steps)
+    delay = jnp.minimum(jnp.floor(u_delay * (delay_hi + 1)).astype(jnp.int32), delay_hi)
+    delay = jnp.where(rand.delay_on, delay, 0).astype(jnp.int32)
+    gust_std = rand.gust_std_max_fps * u_gstd
+    gust_tau = rand.gust_tau_min_s + (rand.gust_tau_max_s - rand.gust_tau_min_s) * u_gtau
+    noise_std = rand.noise_std_max * u_noise
+    return EpisodeParams(
+        aircraft=aircraft,
+        delay_steps=delay,
+        gust_std_fps=jnp.where(rand.gust_on, gust_std, jnp.zeros_like(gust_std)),
+        gust_tau_s=gust_tau,
+        noise_std=jnp.where(rand.noise_on, noise_std, jnp.zeros_like(noise_std)),
+    )
+
+
+def uniform16(key: jax.Array, n: int, dtype=None) -> jnp.ndarray:
+    """[n] U(0, 1) draws at 16-bit resolution, two per 32-bit PRNG word.
+
+    Values are (k + 0.5) / 65536 for k in 0..65535: strictly inside (0, 1). With jax's (default)
+    partitionable threefry every drawn element costs one hash block whatever its width, so packing two
+    16-bit draws in each 32-bit word halves the PRNG work, which dominates the cost of a reset.
+    """
+    dtype = dtype or jnp.result_type(float)
+    words = jax.random.bits(key, ((n + 1) // 2,), dtype=jnp.uint32)
+    halves = jnp.concatenate([words >> 16, words & 0xFFFF])[:n]
+    return (halves.astype(dtype) + 0.5) / 65536.0
+
+
+def sample_episode(
+    key: jax.Array, nominal: AircraftParams, rand: RandomizationParams, max_delay_steps: int
+) -> EpisodeParams:
+    """Draw one episode's parameters (see ``episode_from_uniform``; 16-bit uniforms, ``uniform16``)."""
+    u01 = uniform16(key, NUM_EPISODE_UNIFORMS, nominal.mass_slug.dtype)
+    return episode_from_uniform(u01, nominal, rand, max_delay_steps)
+
+
+def normals_from_uniform(u01: jnp.ndarray) -> jnp.ndarray:
+    """[2m] independent N(0, 1) draws from [2m] U(0, 1) draws (Box-Muller).
+
+    Lets the env make one PRNG call per step (see ``recovery``); u in [0, 1) is mapped to 1 - u in
+    (0, 1] so that the logarithm stays finite. With ``uniform16`` draws the radius is at most
+    sqrt(-2 ln(0.5 / 65536)) = 4.85, i.e. the normal tails are cut at 4.85 std (probability 1.2e-6).
+    """
+    m = u01.shape[-1] // 2
+    radius = jnp.sqrt(-2.0 * jnp.log1p(-u01[..., :m]))
+    angle = (2.0 * jnp.pi) * u01[..., m : 2 * m]
+    return jnp.concatenate([radius * jnp.cos(angle), radius * jnp.sin(angle)], axis=-1)
+
+
+def gust_init(normal3: jnp.ndarray, episode: EpisodeParams) -> jnp.ndarray:
+    """[3] initial body-axis gust, ft/s, from the stationary distribution, given [3] N(0, 1) draws."""
+    return episode.gust_std_fps * normal3
+
+
+def gust_step(
+    gust_fps: jnp.ndarray, episode: EpisodeParams, dt_s: float, normal3: jnp.ndarray
+) -> jnp.ndarray:
+    """Advance the [3] body-axis OU gust by dt_s (exact discretization; stationary std kept).
+
+    Args:
+        gust_fps: [3] current gust, ft/s.
+        episode: episode parameters (gust std and correlation time).
+        dt_s: step, s.
+        normal3: [3] N(0, 1) draws.
+    """
+    a = jnp.exp(-dt_s / episode.gust_tau_s)
+    return a * gust_fps + episode.gust_std_fps * jnp.sqrt(1.0 - a * a) * normal3
+
+
+def sensor_noise(normal8: jnp.ndarray, episode: EpisodeParams) -> jnp.ndarray:
+    """[8] additive sensor noise for the measured observations from [8] N(0, 1) draws."""
+    return episode.noise_std * normal8

@@ -1,0 +1,389 @@
+"""Spin/upset recovery environment: pure functional, gymnax-style, vmappable, ``lax.scan`` friendly.
+
+    env = make_env(EnvConfig())
+    params = default_params(env.config)
+    obs, state = env.reset(key, params)
+    obs, state, reward, done, info = env.step(key, state, action, params)
+
+Observation [11] (physical units, from ``to_wind`` of the true state, plus sensor noise when enabled):
+[V ft/s, alpha, beta, p, q, r, mu, gamma, alpha_d, beta_d, mu_d] (rad, rad/s). NaNs are replaced by 0
+and every component is clipped to the paper's observation box (``OBS_LOW``/``OBS_HIGH``); inside the
+envelope the clip only touches noise at the edges. Action [3] in [-1, 1] (clipped), mapped affinely to
+[u_min, u_max] per channel (de, da, dr); the actuator model adds rate limits (and the delay).
+
+One step: delayed command -> ``actuator_step`` -> ``rk4_body_step`` with the body-axis gust ->
+``to_wind`` (once) -> terminations, reward terms, observation. Reward: see ``harv_jax.env.reward``.
+
+Terminations (``done`` and ``info['terminated']``; reward = terminal_reward - sigma_t): non-finite state,
+V outside (v_min, v_max], alpha outside [alpha_min, alpha_max], any |p|, |q|, |r| > rate_max, |gamma| >
+gamma_max, h < h_floor. The time limit ``episode_steps`` is a truncation (``done`` and
+``info['truncation']``, never both flags): bootstrap from ``info['final_obs']``.
+
+Auto-reset (``step``): when ``done``, the returned ``obs`` and ``state`` are the *new* episode's first
+observation and state (fresh draws of initial state, target and episode parameters);
+``info['final_obs']`` is the observation of the state the finished episode reached (the one to bootstrap
+a truncation from), ``info['final_state_wind']`` its wind-axis state [10]. When not done they equal
+``obs`` and the new state's wind-axis state. ``step_no_reset`` is the same step without the reset (for
+adapters that reset themselves).
+
+``info`` (fixed structure, scan-friendly): ``reward_terms`` (every term of ``reward.RewardTerms``),
+``termination`` (the causes, ``TerminationFlags``), ``terminated``, ``truncation``, ``episode_step``,
+and from ``step`` also ``final_obs`` and ``final_state_wind``.
+
+Potential across a reset: the shaping of the last step of an episode is Gamma * 0 - sigma_t on a
+termination (absorbing state) and Gamma sigma(s_T) - sigma_t on a truncation (s_T is an ordinary state
+that the learner bootstraps from); the new episode's state carries sigma of its own initial state, so
+no shaping term spans two episodes. See ``harv_jax.env.reward``.
+
+Retraces: pass strongly typed arrays (e.g. ``jnp.full((n, 3), 0.2, jnp.float32)``, not a weakly typed
+``jnp.full((n, 3), 0.2)``); parameters from ``default_params`` are strongly typed.
+
+Reset: with probability ``spin_reset_prob`` one of ``spin_states`` (uniform index) plus a uniform
+perturbation, else a uniform draw over the paper's reset bounds at altitude ``h0_ft`` (chi = 0). Target
+alpha_d ~ U(alpha_d_low, alpha_d_high), beta_d, mu_d fixed. Deflections and the delay buffer start at 0
+rad (neutral surfaces), the gust in its stationary distribution.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from harv_jax.aircraft.aero import wrap_angle_rad
+from harv_jax.dynamics import BodyState, actuator_step, from_wind, is_finite, rk4_body_step, to_wind
+from harv_jax.env import randomize, reward
+from harv_jax.env.config import (
+    ACTION_SIZE,
+    NUM_MEASURED,
+    OBS_HIGH,
+    OBS_LOW,
+    OBSERVATION_SIZE,
+    EnvConfig,
+    EnvelopeParams,
+    EnvParams,
+    default_params,
+)
+from harv_jax.env.randomize import EpisodeParams
+
+observation_size = OBSERVATION_SIZE
+action_size = ACTION_SIZE
+
+
+@struct.dataclass
+class EnvState:
+    """Per-env state (one episode in flight).
+
+    Attributes:
+        aircraft: singularity-free integration state.
+        wind: [10] wind-axis state of ``aircraft`` (cached: computed once per step).
+        delta_rad: [3] actual surface deflections [de, da, dr], rad.
+        cmd_buffer_rad: [max_delay_steps + 1, 3] past commands, newest first, rad.
+        gust_fps: [3] body-axis gust, ft/s.
+        target_rad: [3] [alpha_d, beta_d, mu_d], rad.
+        step: int32 steps taken in this episode.
+        potential: PBRS potential sigma of the current state.
+        episode: this episode's randomized parameters.
+    """
+
+    aircraft: BodyState
+    wind: jnp.ndarray
+    delta_rad: jnp.ndarray
+    cmd_buffer_rad: jnp.ndarray
+    gust_fps: jnp.ndarray
+    target_rad: jnp.ndarray
+    step: jnp.ndarray
+    potential: jnp.ndarray
+    episode: EpisodeParams
+
+
+class TerminationFlags(NamedTuple):
+    """Why an episode terminated (bool scalars); ``any`` is the termination."""
+
+    nonfinite: jnp.ndarray
+    speed: jnp.ndarray
+    alpha: jnp.ndarray
+    rates: jnp.ndarray
+    gamma: jnp.ndarray
+    altitude: jnp.ndarray
+
+    @property
+    def any(self) -> jnp.ndarray:
+        return self.nonfinite | self.speed | self.alpha | self.rates | self.gamma | self.altitude
+
+
+def termination_flags(x_wind: jnp.ndarray, finite: jnp.ndarray, envelope: EnvelopeParams) -> TerminationFlags:
+    """Envelope checks on a wind-axis state [10] (``finite``: the integration state is finite).
+
+    Comparisons with NaN are False, so a non-finite state raises only ``nonfinite``.
+    """
+    vt, alpha, pqr, gamma, h = x_wind[0], x_wind[1], x_wind[3:6], x_wind[7], x_wind[9]
+    return TerminationFlags(
+        nonfinite=~finite,
+        speed=(vt <= envelope.v_min_fps) | (vt > envelope.v_max_fps),
+        alpha=(alpha < envelope.alpha_min_rad) | (alpha > envelope.alpha_max_rad),
+        rates=jnp.any(jnp.abs(pqr) > envelope.rate_max_radps),
+        gamma=jnp.abs(gamma) > envelope.gamma_max_rad,
+        altitude=h < envelope.h_floor_ft,
+    )
+
+
+def action_to_command(action: jnp.ndarray, u_min_rad: jnp.ndarray, u_max_rad: jnp.ndarray) -> jnp.ndarray:
+    """Affine map of a normalized action [3] in [-1, 1] to deflections in [u_min, u_max], rad."""
+    return u_min_rad + 0.5 * (action + 1.0) * (u_max_rad - u_min_rad)
+
+
+def clean_observation(x_wind: jnp.ndarray, target_rad: jnp.ndarray) -> jnp.ndarray:
+    """[11] observation of a wind-axis state and target without noise or clipping."""
+    return jnp.concatenate([x_wind[:NUM_MEASURED], target_rad])
+
+
+def _finish_obs(obs: jnp.ndarray) -> jnp.ndarray:
+    obs = jnp.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
+    return jnp.clip(obs, jnp.asarray(OBS_LOW, obs.dtype), jnp.asarray(OBS_HIGH, obs.dtype))
+
+
+class Env(NamedTuple):
+    """A pure environment: ``reset(key, params)``, ``step(key, state, action, params)``.
+
+    Attributes:
+        config: the static config it was built with.
+        reset: (key, EnvParams) -> (obs [11], EnvState).
+        step: (key, EnvState, action [3], EnvParams) -> (obs, state, reward, done, info), auto-reset.
+        step_no_reset: (key, state, action, params) -> (obs, state, reward, terminated, truncated, info).
+        default_params: () -> EnvParams for this config.
+        reset_to: (key, x_wind [10], target [3], params) -> (obs, EnvState): start at a given state.
+        batch_step: (keys [N], states, actions [N, 3], params) -> vmap(step) outputs, with the resets
+            computed only on steps where some env is done (faster for long episodes).
+        observation_size: 11.
+        action_size: 3.
+    """
+
+    config: EnvConfig
+    reset: Callable[..., tuple[jnp.ndarray, EnvState]]
+    step: Callable[..., tuple[jnp.ndarray, EnvState, jnp.ndarray, jnp.ndarray, dict[str, Any]]]
+    step_no_reset: Callable[..., tuple]
+    default_params: Callable[[], EnvParams]
+    reset_to: Callable[..., tuple[jnp.ndarray, EnvState]]
+    batch_step: Callable[..., tuple[jnp.ndarray, EnvState, jnp.ndarray, jnp.ndarray, dict[str, Any]]]
+    observation_size: int = OBSERVATION_SIZE
+    action_size: int = ACTION_SIZE
+
+
+def make_env(config: EnvConfig | None = None) -> Env:
+    """Build the pure reset/step functions for a static config.
+
+    Args:
+        config: static configuration (default ``EnvConfig()``).
+
+    Returns:
+        Env with pure ``reset``/``step``/``step_no_reset`` closures (jit/vmap/scan them).
+    """
+    config = config or EnvConfig()
+    dt_s = config.dt_s
+    n_buf = config.max_delay_steps + 1
+
+    dr = config.domain_randomization
+    # Uniform draws consumed per reset: initial state (8), spin index (1), spin perturbation (10), spin
+    # choice (1), alpha_d (1); with randomization also the episode parameters and the normals (gust 3,
+    # noise 8, via Box-Muller in pairs). Per step (randomization only): the step normals.
+    # ``reset`` and ``step_no_reset`` make one PRNG draw each (``step`` adds one split): every PRNG call
+    # site compiles its own hash (compile time), and with jax's partitionable threefry every drawn
+    # element costs a hash block (run time; hence the 16-bit pairs of ``randomize.uniform16``).
+    n_init_u = 8 + 1 + 10 + 1 + 1
+    n_normal_u = 2 * ((randomize.NUM_STEP_NORMALS + 1) // 2)
+    n_reset_u = n_init_u + ((randomize.NUM_EPISODE_UNIFORMS + n_normal_u) if dr else 0)
+    n_step_u = n_normal_u if dr else 0
+
+    def _initial_wind(u01: jnp.ndarray, params: EnvParams) -> jnp.ndarray:
+        """Initial wind-axis state [10] from ``n_init_u - 1`` U(0, 1) draws."""
+        rp = params.reset
+        x_uniform = jnp.concatenate(
+            [rp.low + (rp.high - rp.low) * u01[:8], 0.0 * u01[:1], params.h0_ft[None]]
+        )
+        n_spin = params.spin_states.shape[0]
+        idx = jnp.minimum(jnp.floor(u01[8] * n_spin).astype(jnp.int32), n_spin - 1)
+        x_spin = params.spin_states[idx] + params.spin_perturb * (2.0 * u01[9:19] - 1.0)
+        use_spin = u01[19] < params.spin_reset_prob
+        x0 = jnp.where(use_spin, x_spin, x_uniform)
+        # canonical angles so that the observation equals to_wind(from_wind(x0))
+        return x0.at[6].set(wrap_angle_rad(x0[6])).at[8].set(wrap_angle_rad(x0[8]))
+
+    def _observe(noise8: jnp.ndarray | None, x_wind: jnp.ndarray, target_rad: jnp.ndarray, ep: EpisodeParams):
+        obs = clean_observation(x_wind, target_rad)
+        if noise8 is not None:
+            obs = obs.at[:NUM_MEASURED].add(randomize.sensor_noise(noise8, ep))
+        return _finish_obs(obs)
+
+    def _uniform(key: jax.Array, n: int, params: EnvParams) -> jnp.ndarray:
+        dtype = params.reset.low.dtype
+        return randomize.uniform16(key, n, dtype) if n else jnp.zeros((0,), dtype)
+
+    def _reset_from_uniform(
+        u01: jnp.ndarray,
+        params: EnvParams,
+        x0: jnp.ndarray | None = None,
+        target: jnp.ndarray | None = None,
+    ) -> tuple[jnp.ndarray, EnvState]:
+        dtype = u01.dtype
+        if x0 is None:
+            x0 = _initial_wind(u01[: n_init_u - 1], params)
+        else:
+            x0 = jnp.asarray(x0, dtype=dtype)
+            x0 = x0.at[6].set(wrap_angle_rad(x0[6])).at[8].set(wrap_angle_rad(x0[8]))
+        if target is None:
+            rp = params.reset
+            alpha_d = rp.alpha_d_low_rad + (rp.alpha_d_high_rad - rp.alpha_d_low_rad) * u01[n_init_u - 1]
+            target = jnp.stack([alpha_d, rp.beta_d_rad, rp.mu_d_rad])
+        else:
+            target = jnp.asarray(target, dtype=dtype)
+        if dr:
+            n_ep = randomize.NUM_EPISODE_UNIFORMS
+            ep = randomize.episode_from_uniform(
+                u01[n_init_u : n_init_u + n_ep], params.aircraft, params.randomization, config.max_delay_steps
+            )
+            normals = randomize.normals_from_uniform(u01[n_init_u + n_ep :])
+            gust = randomize.gust_init(normals[:3], ep)
+            noise8 = normals[3 : 3 + NUM_MEASURED]
+        else:
+            ep = randomize.nominal_episode(params.aircraft, params.randomization)
+            gust = jnp.zeros((3,), dtype)
+            noise8 = None
+        state = EnvState(
+            aircraft=from_wind(x0),
+            wind=x0,
+            delta_rad=jnp.zeros((3,), dtype=dtype),
+            cmd_buffer_rad=jnp.zeros((n_buf, 3), dtype=dtype),
+            gust_fps=gust,
+            target_rad=target,
+            step=jnp.zeros((), dtype=jnp.int32),
+            potential=reward.state_potential(x0, target, params.reward),
+            episode=ep,
+        )
+        return _observe(noise8, x0, target, ep), state
+
+    def reset(key: jax.Array, params: EnvParams) -> tuple[jnp.ndarray, EnvState]:
+        """Start an episode: (obs [11], EnvState)."""
+        return _reset_from_uniform(_uniform(key, n_reset_u, params), params)
+
+    def reset_to(
+        key: jax.Array, x_wind: jnp.ndarray, target_rad: jnp.ndarray, params: EnvParams
+    ) -> tuple[jnp.ndarray, EnvState]:
+        """Start an episode at a given wind-axis state [10] and target [3] (alpha_d, beta_d, mu_d, rad).
+
+        Everything else (episode parameters, gust, noise) is drawn as in ``reset``; mu and chi are
+        wrapped to (-pi, pi]. For evaluation from fixed initial conditions.
+        """
+        return _reset_from_uniform(_uniform(key, n_reset_u, params), params, x_wind, target_rad)
+
+    def _step_from_uniform(u01: jnp.ndarray, state: EnvState, action: jnp.ndarray, params: EnvParams):
+        ep = state.episode
+        ac = ep.aircraft
+        a = jnp.clip(action, -1.0, 1.0)
+        cmd = action_to_command(a, ac.u_min_rad, ac.u_max_rad)
+        buffer = jnp.concatenate([cmd[None], state.cmd_buffer_rad[:-1]], axis=0)
+        delta = actuator_step(state.delta_rad, buffer[ep.delay_steps], ac, dt_s)
+        body = rk4_body_step(state.aircraft, delta, ac, dt_s, state.gust_fps)
+        if dr:
+            normals = randomize.normals_from_uniform(u01)
+            gust = randomize.gust_step(state.gust_fps, ep, dt_s, normals[:3])
+            noise8 = normals[3 : 3 + NUM_MEASURED]
+        else:
+            gust, noise8 = state.gust_fps, None
+        x = to_wind(body)
+        finite = is_finite(body) & jnp.all(jnp.isfinite(x))
+        flags = termination_flags(x, finite, params.envelope)
+        terminated = flags.any
+        t = state.step + 1
+        truncated = (t >= config.episode_steps) & ~terminated
+        terms, pot_next = reward.reward_terms(
+            x, state.target_rad, a, state.potential, terminated, params.reward
+        )
+        obs = _observe(noise8, x, state.target_rad, ep)
+        new_state = state.replace(
+            aircraft=body,
+            wind=x,
+            delta_rad=delta,
+            cmd_buffer_rad=buffer,
+            gust_fps=gust,
+            step=t,
+            potential=pot_next,
+        )
+        info = {
+            "reward_terms": terms._asdict(),
+            "termination": flags._asdict(),
+            "terminated": terminated,
+            "truncation": truncated,
+            "episode_step": t,
+        }
+        return obs, new_state, terms.total, terminated, truncated, info
+
+    def step_no_reset(key: jax.Array, state: EnvState, action: jnp.ndarray, params: EnvParams):
+        """One step without auto-reset.
+
+        Returns:
+            (obs [11], state, reward, terminated, truncated, info). On termination the returned state
+            is the (possibly non-finite) state that left the envelope.
+        """
+        return _step_from_uniform(_uniform(key, n_step_u, params), state, action, params)
+
+    def step(key: jax.Array, state: EnvState, action: jnp.ndarray, params: EnvParams):
+        """One step with auto-reset: (obs, state, reward, done, info); see the module docstring."""
+        k_step, k_reset = jax.random.split(key)
+        del key
+        obs, new_state, rew, terminated, truncated, info = step_no_reset(k_step, state, action, params)
+        done = terminated | truncated
+        obs_reset, state_reset = reset(k_reset, params)
+        info["final_obs"] = obs
+        info["final_state_wind"] = new_state.wind
+        state_out = jax.tree.map(lambda r, s: jnp.where(done, r, s), state_reset, new_state)
+        obs_out = jnp.where(done, obs_reset, obs)
+        return obs_out, state_out, rew, done, info
+
+    def batch_step(keys: jax.Array, states: EnvState, actions: jnp.ndarray, params: EnvParams):
+        """``vmap(step)`` over a batch, computing the resets only when some env of the batch is done.
+
+        Same outputs as ``jax.vmap(step, in_axes=(0, 0, 0, None))`` for the same keys. Under ``vmap``
+        every env pays for a reset at every step (the auto-reset is a select); here the resets sit in a
+        ``lax.cond`` on ``any(done)``, so steps on which no episode ends skip them. (Nested in a further
+        ``vmap`` the cond becomes a select again: still correct, no saving.)
+
+        Args:
+            keys: [N] PRNG keys.
+            states: EnvState batched over N.
+            actions: [N, 3] normalized actions.
+            params: EnvParams shared by the batch (unbatched).
+        """
+        split = jax.vmap(jax.random.split)(keys)
+        k_step, k_reset = split[:, 0], split[:, 1]
+        del keys, split
+        obs, new_states, rew, terminated, truncated, info = jax.vmap(step_no_reset, in_axes=(0, 0, 0, None))(
+            k_step, states, actions, params
+        )
+        done = terminated | truncated
+        info["final_obs"] = obs
+        info["final_state_wind"] = new_states.wind
+
+        def with_resets(_):
+            obs_reset, states_reset = jax.vmap(reset, in_axes=(0, None))(k_reset, params)
+
+            def pick(r, s):
+                return jnp.where(done.reshape(done.shape + (1,) * (s.ndim - 1)), r, s)
+
+            return pick(obs_reset, obs), jax.tree.map(pick, states_reset, new_states)
+
+        obs_out, states_out = jax.lax.cond(jnp.any(done), with_resets, lambda _: (obs, new_states), None)
+        return obs_out, states_out, rew, done, info
+
+    return Env(
+        config=config,
+        reset=reset,
+        step=step,
+        step_no_reset=step_no_reset,
+        default_params=lambda: default_params(config),
+        reset_to=reset_to,
+        batch_step=batch_step,
+    )

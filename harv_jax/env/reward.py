@@ -1,0 +1,193 @@
+"""The paper's reward (Section IV-A), term by term; pure functions of scalars, vmappable.
+
+| symbol      | meaning                                                        | unit   |
+|-------------|----------------------------------------------------------------|--------|
+| omega       | body rates [p, q, r]                                           | rad/s  |
+| ||omega||   | sqrt(p^2 + q^2 + r^2)                                          | rad/s  |
+| coupling    | |pq| + |qr| + |pr|                                             | rad^2/s^2 |
+| e_alpha ... | alpha - alpha_d, beta - beta_d, wrap(mu - mu_d) to (-pi, pi]   | rad    |
+| eps         | logistic blend 1 / (1 + exp(k (||omega|| - omega_th)))         | -      |
+| sigma       | PBRS potential -e_alpha^2 - w_p21 ||omega||^2                  | -      |
+
+    r_phase1 = -||omega||^2 - w_p1 coupling
+    r_phase2 = -e_alpha^2 - w_p21 e_alpha q - w_p22 (||omega||^2 + coupling)
+    r_raw    = (1 - eps) r_phase1 + eps r_phase2
+    bonus    = +5 [|e_alpha| < 0.017] + 3 [|e_beta| < 0.017] + 3 [|e_mu| < 0.017]
+    action   = -sum_i a_i^2          (a = the normalized action in [-1, 1]^3)
+    shaping  = Gamma sigma_{t+1} - sigma_t
+    reward   = r_raw + bonus + action + shaping                        (non-terminal step)
+    reward   = terminal_reward + (Gamma * 0 - sigma_t)                 (terminating step)
+
+The paper lists the bonuses and the action penalty as "Additional Reward" next to the blended phases, so
+they are added outside the blend. All state terms are evaluated at the state reached by the step
+(s_{t+1}); sigma_t is the potential of the state the step started from.
+
+Terminal step: the episode ends in an absorbing state whose potential is defined as 0 (Ng, Harada &
+Russell 1999), so the shaping is -sigma_t and the discounted shaping of any episode telescopes to
+Gamma^T sigma_T - sigma_0 with sigma_T = 0 on termination (policy invariance is kept). The performance
+terms of a terminating step (possibly non-finite there) are not paid and are reported as 0: the step
+pays ``terminal_reward`` (paper -1000) plus that shaping. On a truncation (time limit) s_{t+1} is an
+ordinary state: the step is rewarded normally and the learner bootstraps from it.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from harv_jax.aircraft.aero import wrap_angle_rad
+from harv_jax.env.config import RewardParams
+
+
+class RewardTerms(NamedTuple):
+    """Every reward term of one step, separately (scalars; ``total`` is what the learner gets)."""
+
+    phase1: jnp.ndarray
+    phase2: jnp.ndarray
+    blend: jnp.ndarray
+    raw: jnp.ndarray
+    bonus_alpha: jnp.ndarray
+    bonus_beta: jnp.ndarray
+    bonus_mu: jnp.ndarray
+    action: jnp.ndarray
+    shaping: jnp.ndarray
+    terminal: jnp.ndarray
+    total: jnp.ndarray
+
+
+def omega_norm_sq(pqr_radps: jnp.ndarray) -> jnp.ndarray:
+    """||omega||^2 = p^2 + q^2 + r^2, rad^2/s^2, of body rates [3]."""
+    return jnp.sum(pqr_radps * pqr_radps, axis=-1)
+
+
+def coupling(pqr_radps: jnp.ndarray) -> jnp.ndarray:
+    """Cross-coupling |pq| + |qr| + |pr|, rad^2/s^2, of body rates [3]."""
+    p, q, r = pqr_radps[..., 0], pqr_radps[..., 1], pqr_radps[..., 2]
+    return jnp.abs(p * q) + jnp.abs(q * r) + jnp.abs(p * r)
+
+
+def tracking_errors(x_wind: jnp.ndarray, target_rad: jnp.ndarray) -> jnp.ndarray:
+    """[e_alpha, e_beta, e_mu], rad, of a wind-axis state [10] and a target [alpha_d, beta_d, mu_d].
+
+    e_mu is wrapped to (-pi, pi] (mu is an angle; mu = pi and mu = -pi are the same attitude).
+    """
+    e_alpha = x_wind[1] - target_rad[0]
+    e_beta = x_wind[2] - target_rad[1]
+    e_mu = wrap_angle_rad(x_wind[6] - target_rad[2])
+    return jnp.stack([e_alpha, e_beta, e_mu])
+
+
+def phase1(pqr_radps: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
+    """Phase-1 (rate damping) reward -||omega||^2 - w_p1 (|pq| + |qr| + |pr|)."""
+    return -omega_norm_sq(pqr_radps) - params.w_p1 * coupling(pqr_radps)
+
+
+def phase2(e_alpha_rad: jnp.ndarray, pqr_radps: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
+    """Phase-2 (attitude) reward -e_alpha^2 - w_p21 e_alpha q - w_p22 (||omega||^2 + coupling)."""
+    q = pqr_radps[..., 1]
+    return (
+        -e_alpha_rad * e_alpha_rad
+        - params.w_p21 * e_alpha_rad * q
+        - params.w_p22 * (omega_norm_sq(pqr_radps) + coupling(pqr_radps))
+    )
+
+
+def blend(omega_norm_radps: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
+    """Logistic gate eps = 1 / (1 + exp(k (||omega|| - omega_th))) in (0, 1); eps -> 1 at low rates.
+
+    Computed as sigmoid(-k (||omega|| - omega_th)), which is the same function without overflow.
+    """
+    return jax.nn.sigmoid(-params.k_blend * (omega_norm_radps - params.omega_th_radps))
+
+
+def raw(pqr_radps: jnp.ndarray, e_alpha_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
+    """r_raw = (1 - eps) r_phase1 + eps r_phase2."""
+    eps = blend(jnp.sqrt(omega_norm_sq(pqr_radps)), params)
+    return (1.0 - eps) * phase1(pqr_radps, params) + eps * phase2(e_alpha_rad, pqr_radps, params)
+
+
+def bonuses(errors_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
+    """[bonus_alpha, bonus_beta, bonus_mu]: each paid when its |error| < bonus_tol_rad (strict)."""
+    inside = jnp.abs(errors_rad) < params.bonus_tol_rad
+    amounts = jnp.stack([params.bonus_alpha, params.bonus_beta, params.bonus_mu])
+    return jnp.where(inside, amounts, jnp.zeros_like(amounts))
+
+
+def action_penalty(action: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
+    """-action_weight * sum_i a_i^2 of the normalized action [3]."""
+    return -params.action_weight * jnp.sum(action * action, axis=-1)
+
+
+def potential(e_alpha_rad: jnp.ndarray, pqr_radps: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
+    """PBRS potential sigma = -e_alpha^2 - w_p21 ||omega||^2 (paper eq. pbrs)."""
+    return -e_alpha_rad * e_alpha_rad - params.w_p21 * omega_norm_sq(pqr_radps)
+
+
+def shaping(potential_next: jnp.ndarray, potential_prev: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
+    """PBRS term shaping_weight * (Gamma sigma_{t+1} - sigma_t)."""
+    return params.shaping_weight * (params.discount * potential_next - potential_prev)
+
+
+def state_potential(x_wind: jnp.ndarray, target_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
+    """sigma of a wind-axis state [10] for a target [3]."""
+    return potential(x_wind[1] - target_rad[0], x_wind[3:6], params)
+
+
+def reward_terms(
+    x_wind: jnp.ndarray,
+    target_rad: jnp.ndarray,
+    action: jnp.ndarray,
+    potential_prev: jnp.ndarray,
+    terminated: jnp.ndarray,
+    params: RewardParams,
+) -> tuple[RewardTerms, jnp.ndarray]:
+    """All reward terms of one step and the potential of the new state.
+
+    Args:
+        x_wind: [10] wind-axis state reached by the step (s_{t+1}).
+        target_rad: [3] target [alpha_d, beta_d, mu_d], rad.
+        action: [3] normalized action actually applied (clipped to [-1, 1]).
+        potential_prev: sigma_t of the state the step started from.
+        terminated: bool, the step left the envelope (s_{t+1} is absorbing, sigma = 0).
+        params: reward weights.
+
+    Returns:
+        (RewardTerms, sigma_{t+1}); sigma_{t+1} is the potential of x_wind (not zeroed on termination;
+        it may be non-finite there; the env replaces the state on termination anyway).
+    """
+    pqr = x_wind[3:6]
+    errors = tracking_errors(x_wind, target_rad)
+    e_alpha = errors[0]
+    eps = blend(jnp.sqrt(omega_norm_sq(pqr)), params)
+    r1 = phase1(pqr, params)
+    r2 = phase2(e_alpha, pqr, params)
+    r_raw = (1.0 - eps) * r1 + eps * r2
+    bonus = bonuses(errors, params)
+    r_action = action_penalty(action, params)
+    pot_next = potential(e_alpha, pqr, params)
+    pot_target = jnp.where(terminated, jnp.zeros_like(pot_next), pot_next)
+    r_shaping = shaping(pot_target, potential_prev, params)
+    zero = jnp.zeros_like(r_raw)
+
+    def paid(v):
+        return jnp.where(terminated, zero, v)
+
+    r_terminal = jnp.where(terminated, params.terminal_reward, zero)
+    performance = r_raw + jnp.sum(bonus) + r_action
+    total = jnp.where(terminated, r_terminal, performance) + r_shaping
+    terms = RewardTerms(
+        phase1=paid(r1),
+        phase2=paid(r2),
+        blend=paid(eps),
+        raw=paid(r_raw),
+        bonus_alpha=paid(bonus[0]),
+        bonus_beta=paid(bonus[1]),
+        bonus_mu=paid(bonus[2]),
+        action=paid(r_action),
+        shaping=r_shaping,
+        terminal=r_terminal,
+        total=total,
+    )
+    return terms, pot_next
