@@ -27,9 +27,27 @@ import sys
 import time
 from pathlib import Path
 
-import jax
-import jax.numpy as jnp
-import numpy as np
+
+def _host_devices_from_argv(argv: list[str]) -> int:
+    """--host-devices N (default: one XLA host device per CPU core), read before jax starts."""
+    for i, a in enumerate(argv):
+        if a == "--host-devices" and i + 1 < len(argv):
+            return int(argv[i + 1])
+        if a.startswith("--host-devices="):
+            return int(a.split("=", 1)[1])
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+if "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = (
+        os.environ.get("XLA_FLAGS", "")
+        + f" --xla_force_host_platform_device_count={_host_devices_from_argv(sys.argv)}"
+    ).strip()
+
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+from jax.sharding import Mesh, NamedSharding, PartitionSpec  # noqa: E402
 
 # allow `python benchmarks/bench_dynamics.py` from the repository root (benchmarks/ is not installed)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -105,6 +123,11 @@ def make_fly(n_steps: int):
 def bench_jax(batch: int, n_steps: int, repeats: int, dtype, seed: int) -> dict:
     """Compile time and best-of-``repeats`` throughput for one batch size."""
     args = make_fleet(seed, batch, dtype)
+    devices = jax.local_devices()
+    n_dev = len(devices) if batch % len(devices) == 0 else 1
+    if n_dev > 1:  # one shard of the fleet per device (on a CPU: per core)
+        sharding = NamedSharding(Mesh(np.array(devices), ("aircraft",)), PartitionSpec("aircraft"))
+        args = jax.device_put(args, sharding)
     fly = make_fly(n_steps)
     t0 = time.perf_counter()
     compiled = fly.lower(*args).compile()
@@ -118,6 +141,7 @@ def bench_jax(batch: int, n_steps: int, repeats: int, dtype, seed: int) -> dict:
     best = min(times)
     return {
         "batch": batch,
+        "devices_used": n_dev,
         "n_steps": n_steps,
         "compile_s": round(compile_s, 4),
         "best_run_s": best,
@@ -158,6 +182,10 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out-dir", type=Path, default=Path(__file__).resolve().parent / "results")
     ap.add_argument("--note", default="", help="free text stored in the JSON (e.g. 'machine shared')")
+    ap.add_argument(
+        "--host-devices", type=int, default=None,
+        help="XLA host (CPU) devices to shard the fleet over; default one per core (read at start-up)",
+    )  # fmt: skip
     args = ap.parse_args(argv)
 
     if args.x64:
@@ -192,7 +220,7 @@ def main(argv: list[str] | None = None) -> dict:
         "jaxlib_version": _jaxlib_version(),
         "python": platform.python_version(),
         "platform": platform.platform(),
-        "device": {"platform": dev.platform, "kind": dev.device_kind, "count": jax.device_count()},
+        "device": {"platform": dev.platform, "kind": dev.device_kind, "count": jax.local_device_count()},
         "cpu_count": os.cpu_count(),
         "dtype": jnp.dtype(dtype).name,
         "dt_s": DT_S,
@@ -202,7 +230,8 @@ def main(argv: list[str] | None = None) -> dict:
         "steps_rule": {"work": work, "min_steps": min_steps, "max_steps": max_steps, "repeats": repeats},
         "method": (
             "jit(vmap(lax.scan of n_steps x [actuator_step + rk4_body_step])) over B aircraft with varied "
-            "mass/inertia/aero_scale; time = best of repeats after a warm-up, block_until_ready; "
+            "mass/inertia/aero_scale, the fleet sharded over the local devices (on a CPU one XLA host device "
+            "per core) when the batch divides; time = best of repeats after a warm-up, block_until_ready; "
             "compile_s = lower().compile(). numpy: benchmarks/numpy_harv.py wind-axis RK4 + actuator, one "
             "aircraft in a Python loop, float64."
         ),

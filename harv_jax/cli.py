@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import os
 import sys
 
 import typer
@@ -33,8 +34,19 @@ for _name in COMMAND_MODULES:
         importlib.import_module(_full).register(app)
 
 
+def use_all_cpu_cores() -> None:
+    """One XLA host device per CPU core (unless XLA_FLAGS already sets a count), so that runs sharded
+    over ``jax.local_devices()`` use every core of a CPU machine; no effect on GPU runs.
+    Must run before jax initializes its backends."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_force_host_platform_device_count" not in flags:
+        n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={n}".strip()
+
+
 def main() -> None:
     """Console entry point: run the app; turn UsageError/ValueError into a one-line error, exit 2."""
+    use_all_cpu_cores()
     try:
         app(standalone_mode=False)
     except typer.Exit as e:
