@@ -1,0 +1,339 @@
+"""`harv-jax train`: PPO on the recovery env from a preset, with overrides, checkpoints and resume.
+
+Outputs in ``--out DIR``: ``config.json``, ``metrics.csv`` (one row per period: mean, std and per-seed value
+of every metric), TensorBoard event files in ``tb/`` (if tensorboardX is installed), ``checkpoints/``,
+``training_curve.png`` (mean episode return +- std over seeds vs env steps) and ``policy/`` (``policy.npz``
+and ``policy.stablehlo`` of the best seed by final mean return, ``policy_seed<i>.npz`` for every seed).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import typer
+
+from harv_jax.errors import UsageError
+
+#: Metrics shown in the progress bar and summary (name in history -> label).
+_SHOWN = {"episode_return": "return", "episode/recovered": "recovered", "episode/final_omega_radps": "|w|end"}
+
+
+def build_config(
+    preset: str,
+    overrides: dict[str, Any],
+) -> tuple[Any, dict[str, Any]]:
+    """Preset + command-line overrides -> (validated PPOConfig, env settings)."""
+    from harv_jax.ppo import config as ppo_config
+
+    cfg, env_table = ppo_config.load_preset(preset)
+    changes = {k: v for k, v in overrides.items() if v is not None}
+    return ppo_config.from_dict(changes, base=cfg, source="command line"), env_table
+
+
+def make_harv_env(env_table: dict[str, Any]) -> tuple[Any, Any]:
+    """(env, env_params) of the recovery env from a preset's ``[env]`` table; UsageError if a key is bad."""
+    import dataclasses
+
+    from harv_jax.env import EnvConfig, default_params, make_env
+
+    allowed = {f.name for f in dataclasses.fields(EnvConfig)}
+    unknown = sorted(set(env_table) - allowed)
+    if unknown:
+        raise UsageError(f"unknown env setting {unknown[0]!r}; allowed: {', '.join(sorted(allowed))}")
+    try:
+        env_config = EnvConfig(**env_table)
+    except (TypeError, ValueError) as e:
+        raise UsageError(f"bad env setting: {e}") from None
+    return make_env(env_config), default_params(env_config)
+
+
+# ---------------------------------------------------------------------------------------------- outputs
+
+
+def write_metrics_csv(path: Path, history: list[dict[str, Any]]) -> None:
+    """Rewrite ``metrics.csv`` from the whole history (so a resumed run has one row per period)."""
+    if not history:
+        return
+    scalar = ("period", "env_steps", "wall_s", "period_s")
+    names = [k for k in history[0] if k not in scalar]
+    n_seeds = int(np.asarray(history[0][names[0]]).size) if names else 1
+    header = list(scalar)
+    for k in names:
+        header += [k, f"{k}_std"] + [f"{k}/seed{i}" for i in range(n_seeds)]
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        for row in history:
+            out = [row[k] for k in scalar]
+            for k in names:
+                v = np.asarray(row.get(k, np.full(n_seeds, np.nan)), np.float64).reshape(-1)
+                finite = v[np.isfinite(v)]
+                out += [finite.mean() if finite.size else math.nan, finite.std() if finite.size else math.nan]
+                out += list(v)
+            w.writerow([f"{x:.6g}" if isinstance(x, float | np.floating) else x for x in out])
+    tmp.replace(path)
+
+
+def plot_training_curve(path: Path, history: list[dict[str, Any]], title: str) -> Path:
+    """Mean episode return +- std over seeds vs env steps (the paper's reward-vs-steps figure)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    steps = np.array([row["env_steps"] for row in history], np.float64)
+    ret = np.stack([np.asarray(row["episode_return"], np.float64).reshape(-1) for row in history])
+    mean, std = np.nanmean(ret, axis=1), np.nanstd(ret, axis=1)
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
+    ax = axes[0]
+    ax.plot(steps, mean, color="C0", label=f"mean over {ret.shape[1]} seed(s)")
+    ax.fill_between(steps, mean - std, mean + std, color="C0", alpha=0.25, label="+- 1 std")
+    for s in range(ret.shape[1]):
+        ax.plot(steps, ret[:, s], color="C0", lw=0.6, alpha=0.4)
+    ax.set_xlabel("env steps per seed")
+    ax.set_ylabel("mean episode return")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    ax = axes[1]
+    for k, label, c in (("episode/recovered", "recovered at episode end", "C2"),
+                        ("episode/terminated", "terminated (left envelope)", "C3")):  # fmt: skip
+        if k in history[0]:
+            v = np.stack([np.asarray(row[k], np.float64).reshape(-1) for row in history])
+            m, s = np.nanmean(v, axis=1), np.nanstd(v, axis=1)
+            ax.plot(steps, m, color=c, label=label)
+            ax.fill_between(steps, m - s, m + s, color=c, alpha=0.2)
+    ax.set_xlabel("env steps per seed")
+    ax.set_ylabel("fraction of episodes")
+    ax.set_ylim(-0.02, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+class _TensorBoard:
+    """Scalars per period to TensorBoard event files (no-op without tensorboardX)."""
+
+    def __init__(self, log_dir: Path, purge_step: int | None) -> None:
+        try:
+            from tensorboardX import SummaryWriter
+        except ImportError:
+            self.writer = None
+            return
+        self.writer = SummaryWriter(str(log_dir), purge_step=purge_step)
+
+    def write(self, row: dict[str, Any]) -> None:
+        if self.writer is None:
+            return
+        step = int(row["env_steps"])
+        for k, v in row.items():
+            if k in ("period", "env_steps"):
+                continue
+            a = np.asarray(v, np.float64).reshape(-1)
+            if np.any(np.isfinite(a)):
+                self.writer.add_scalar(f"train/{k}", float(np.nanmean(a)), step)
+        self.writer.flush()
+
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.close()
+
+
+def _fmt(row: dict[str, Any], key: str) -> str:
+    if key not in row:
+        return "-"
+    v = np.asarray(row[key], np.float64).reshape(-1)
+    v = v[np.isfinite(v)]
+    return f"{v.mean():.4g}" if v.size else "nan"
+
+
+def export_policies(out_dir: Path, state: Any, trainer: Any, cfg: Any, history: list[dict[str, Any]]) -> int:
+    """Write ``policy/policy_seed<i>.npz`` per seed and ``policy.npz``/``policy.stablehlo`` of the best."""
+    import jax
+
+    from harv_jax import policy as policy_api
+    from harv_jax.policy import make_policy, select_seed
+    from harv_jax.ppo import config as ppo_config
+
+    params, normalizer = jax.device_get((state.params, state.normalizer))
+    last = np.asarray(history[-1]["episode_return"], np.float64).reshape(-1) if history else np.zeros(1)
+    best = int(np.nanargmax(np.where(np.isfinite(last), last, -np.inf))) if np.any(np.isfinite(last)) else 0
+    pdir = out_dir / "policy"
+    for s in range(cfg.num_seeds):
+        meta = {
+            "seed": s,
+            "config": ppo_config.to_dict(cfg),
+            "normalize_observations": cfg.normalize_observations,
+            "env_steps": history[-1]["env_steps"] if history else 0,
+        }
+        pol = make_policy(select_seed(params, s), select_seed(normalizer, s), trainer.networks,
+                          cfg.normalize_observations, meta)  # fmt: skip
+        policy_api.export_npz(pdir / f"policy_seed{s}.npz", pol)
+        if s == best:
+            policy_api.export_npz(pdir / "policy.npz", pol)
+            if policy_api.export_available():  # jax.export serialization needs flatbuffers
+                policy_api.export_stablehlo(pdir / "policy.stablehlo", pol)
+    return best
+
+
+# ---------------------------------------------------------------------------------------------- command
+
+
+def run_train(
+    preset: str | None,
+    overrides: dict[str, Any],
+    out: Path | None,
+    resume: Path | None,
+    force: bool,
+) -> dict[str, Any]:
+    """Validate, build, train, write outputs; returns a summary dict. Raises UsageError on bad input."""
+    from harv_jax.ppo import checkpoint
+    from harv_jax.ppo import config as ppo_config
+
+    if resume is not None:
+        given = sorted(k for k, v in overrides.items() if v is not None)
+        if given or preset is not None:
+            what = "--preset" if preset is not None else "--" + given[0].replace("_", "-")
+            raise UsageError(f"--resume continues the stored configuration; drop {what}")
+        if out is not None and Path(out).resolve() != Path(resume).resolve():
+            raise UsageError(f"--resume writes into its own folder; drop --out {str(out)!r}")
+        if not Path(resume).is_dir():
+            raise UsageError(f"--resume {str(resume)!r} is not a directory")
+        cfg, env_table = checkpoint.stored_configs(resume)
+        out_dir = Path(resume)
+    else:
+        if out is None:
+            raise UsageError("--out DIR is required (or --resume DIR)")
+        cfg, env_table = build_config(preset or "smoke", overrides)
+
+    import jax
+
+    from harv_jax.outdir import prepare_out_dir
+    from harv_jax.ppo.train import harv_episode_metrics, make_train, run_training
+
+    ppo_config.check_devices(cfg, jax.device_count())
+    env, env_params = make_harv_env(env_table)
+    if resume is None:
+        out_dir = prepare_out_dir(out, force)
+        (out_dir / "config.json").write_text(
+            json.dumps(
+                {"preset": preset or "smoke", "ppo": ppo_config.to_dict(cfg), "env": env_table}, indent=2
+            )
+        )
+    trainer = make_train(env, cfg, env_params, episode_metrics_fn=harv_episode_metrics)
+    n_periods = ppo_config.num_periods(cfg)
+    total = n_periods * ppo_config.steps_per_period(cfg)
+    start_steps = 0
+    if resume is not None:
+        files = checkpoint.checkpoint_paths(out_dir / "checkpoints")
+        start_steps = int(checkpoint.read(files[-1])["env_steps"]) if files else 0
+    tb = _TensorBoard(out_dir / "tb", purge_step=start_steps if resume is not None else None)
+    history_box: list[list[dict[str, Any]]] = [[]]
+
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    console = Console(stderr=True)
+    progress = Progress(
+        TextColumn("[bold]train"),
+        BarColumn(),
+        TextColumn("{task.completed:,.0f}/{task.total:,.0f} steps"),
+        TextColumn("{task.fields[sps]} steps/s"),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+        TextColumn("return {task.fields[ret]}  recovered {task.fields[rec]}  |w|end {task.fields[omega]}"),
+        console=console,
+        transient=False,
+    )
+    task = progress.add_task(
+        "train", total=total, completed=start_steps, sps="-", ret="-", rec="-", omega="-"
+    )
+
+    def on_period(p: int, row: dict[str, Any]) -> None:
+        history_box[0].append(row)
+        sps = cfg.num_seeds * ppo_config.steps_per_period(cfg) / max(row["period_s"], 1e-9)
+        fields = {
+            "sps": f"{sps:,.0f}",
+            "ret": _fmt(row, "episode_return"),
+            "rec": _fmt(row, "episode/recovered"),
+            "omega": _fmt(row, "episode/final_omega_radps"),
+        }
+        progress.update(task, completed=row["env_steps"], **fields)
+        if not console.is_terminal:
+            console.print(
+                f"period {row['period']}/{n_periods} steps {row['env_steps']:,} ({fields['sps']} steps/s) "
+                f"return {fields['ret']} recovered {fields['rec']} |w|end {fields['omega']}",
+                soft_wrap=True,
+            )
+        tb.write(row)
+
+    key = jax.random.key(cfg.seed)
+    with progress:
+        result = run_training(
+            key, env, env_params, cfg, run_dir=out_dir, resume=resume is not None, env_config=env_table,
+            progress_fn=on_period, trainer=trainer,
+        )  # fmt: skip
+    tb.close()
+    history = result.history
+    write_metrics_csv(out_dir / "metrics.csv", history)
+    if history:
+        plot_training_curve(out_dir / "training_curve.png", history,
+                            f"harv-jax train: {cfg.num_seeds} seed(s), {cfg.num_envs} envs")  # fmt: skip
+    best = export_policies(out_dir, result.state, result.trainer, cfg, history)
+    summary = {"out": str(out_dir), "periods": len(history), "best_seed": best,
+               "env_steps_per_seed": history[-1]["env_steps"] if history else 0}  # fmt: skip
+    for k in ("episode_return", "episode/recovered", "episode/final_omega_radps", "episode/terminated"):
+        if history and k in history[-1]:
+            first = np.asarray(history[0][k], np.float64).reshape(-1)
+            last = np.asarray(history[-1][k], np.float64).reshape(-1)
+            summary[k] = {"first_mean": float(np.nanmean(first)), "last_mean": float(np.nanmean(last)),
+                          "last_std": float(np.nanstd(last))}  # fmt: skip
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2))
+    return summary
+
+
+def register(app: typer.Typer) -> None:
+    @app.command()
+    def train(
+        preset: str = typer.Option(
+            None,
+            help="Preset in experiments/presets: smoke, paper-partial, paper-full "
+            "(or a path to a .toml). Default smoke.",
+        ),  # fmt: skip
+        steps: int = typer.Option(None, help="Env steps per seed (> 0)."),
+        num_envs: int = typer.Option(None, help="Parallel envs per seed; divisible by the device count."),
+        unroll: int = typer.Option(None, help="Rollout length per update (> 0)."),
+        epochs: int = typer.Option(None, help="PPO epochs per update (> 0)."),
+        minibatches: int = typer.Option(None, help="Minibatches per epoch; divides num_envs * unroll."),
+        lr: float = typer.Option(None, help="Adam learning rate (> 0)."),
+        seeds: int = typer.Option(None, help="Independent policies trained together (vmap)."),
+        seed: int = typer.Option(None, help="Base seed (>= 0)."),
+        out: Path = typer.Option(None, help="Output directory (new, or empty, or with --force)."),
+        resume: Path = typer.Option(
+            None, help="Continue the run in this directory from its last checkpoint."
+        ),
+        force: bool = typer.Option(False, help="Replace an existing non-empty --out directory."),
+    ) -> None:
+        """Train PPO policies (several seeds at once) on the spin/upset recovery env."""
+        overrides = {"total_steps": steps, "num_envs": num_envs, "unroll": unroll, "epochs": epochs,
+                     "minibatches": minibatches, "lr": lr, "num_seeds": seeds, "seed": seed}  # fmt: skip
+        summary = run_train(preset, overrides, out, resume, force)
+        ret = summary.get("episode_return", {})
+        rec = summary.get("episode/recovered", {})
+        typer.echo(
+            f"wrote {summary['out']} ({summary['periods']} periods, "
+            f"{summary['env_steps_per_seed']:,} steps/seed); "
+            f"mean return {ret.get('first_mean', math.nan):.4g} -> {ret.get('last_mean', math.nan):.4g} "
+            f"(+- {ret.get('last_std', math.nan):.3g} over seeds), recovered at episode end "
+            f"{rec.get('last_mean', math.nan):.3f}; best seed {summary['best_seed']}"
+        )

@@ -1,0 +1,277 @@
+"""Trained-policy API: load a policy, act deterministically or stochastically, export it.
+
+``load(path)`` accepts a training run folder (``<run>/policy/policy.npz``), a ``.npz`` written by
+:func:`export_npz`, or a training checkpoint (``ckpt_*.msgpack``; ``seed`` picks the learner). It returns a
+:class:`Policy` with jitted ``deterministic(obs) -> action`` and ``stochastic(key, obs) -> action``; ``obs``
+is the env observation ``[..., 11]`` in physical units (ft/s, rad, rad/s), ``action`` the normalised command
+``[..., 3]`` in [-1, 1] (the env maps it affinely to [u_min, u_max] rad per surface).
+
+Plain ``.npz`` layout (``np.load(path, allow_pickle=False)``), for use outside Python: ``obs_mean [O]``,
+``obs_std [O]``: ``x = clip((obs - obs_mean) / obs_std, -10, 10)`` (``x = obs`` when
+``meta["normalize_observations"]`` is false); actor layers ``policy/hidden_<i>/kernel [in, out]``,
+``policy/hidden_<i>/bias [out]`` with ``h = tanh(h @ kernel + bias)``, then ``mean = h @ policy/out/kernel +
+policy/out/bias``; ``policy/log_std [A]``; critic likewise under ``value/``; ``meta`` a JSON string (sizes,
+config, seed). Deterministic action: ``clip(mean, -1, 1)``; stochastic: ``clip(mean + exp(log_std) * N(0,
+1), -1, 1)``.
+
+``export_stablehlo`` writes the deterministic policy with ``jax.export`` (serialized StableHLO, symbolic
+batch size, weights baked in); :func:`load_exported` reads it back without the model code.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import traverse_util
+
+from harv_jax.errors import UsageError
+from harv_jax.ppo import normalize as obs_norm
+from harv_jax.ppo.networks import (
+    PPONetworks,
+    PPOParams,
+    make_ppo_networks,
+    postprocess,
+    sample_raw_action,
+)
+
+NPZ_FORMAT = "harv_jax.policy.npz/1"
+
+
+@dataclass(frozen=True)
+class Policy:
+    """A loaded policy.
+
+    Attributes:
+        deterministic: jitted ``obs [..., O] -> action [..., A]`` (clip of the Gaussian mean).
+        stochastic: jitted ``(key, obs [..., O]) -> action [..., A]`` (clipped Gaussian sample).
+        value: jitted ``obs [..., O] -> V(obs)`` (scaled-reward units of training).
+        params: actor/critic parameters.
+        normalizer: observation statistics used by the policy.
+        networks: the modules.
+        meta: sizes, config and provenance.
+    """
+
+    deterministic: Callable[[jax.Array], jax.Array]
+    stochastic: Callable[[jax.Array, jax.Array], jax.Array]
+    value: Callable[[jax.Array], jax.Array]
+    params: PPOParams
+    normalizer: obs_norm.RunningStats
+    networks: PPONetworks
+    meta: dict[str, Any]
+
+
+def make_policy(
+    params: PPOParams,
+    normalizer: obs_norm.RunningStats,
+    networks: PPONetworks,
+    normalize_observations: bool = True,
+    meta: dict[str, Any] | None = None,
+) -> Policy:
+    """Wrap parameters into a :class:`Policy` (one learner: no seed axis)."""
+
+    def prep(obs: jax.Array) -> jax.Array:
+        obs = jnp.asarray(obs, jnp.float32)
+        return obs_norm.normalize(normalizer, obs) if normalize_observations else obs
+
+    def deterministic(obs: jax.Array) -> jax.Array:
+        mean, _ = networks.policy(params, prep(obs))
+        return postprocess(mean)
+
+    def stochastic(key: jax.Array, obs: jax.Array) -> jax.Array:
+        mean, log_std = networks.policy(params, prep(obs))
+        return postprocess(sample_raw_action(key, mean, log_std))
+
+    def value(obs: jax.Array) -> jax.Array:
+        return networks.value(params, prep(obs))
+
+    return Policy(
+        deterministic=jax.jit(deterministic),
+        stochastic=jax.jit(stochastic),
+        value=jax.jit(value),
+        params=params,
+        normalizer=normalizer,
+        networks=networks,
+        meta=dict(meta or {}),
+    )
+
+
+def select_seed(tree: Any, seed: int) -> Any:
+    """Slice learner ``seed`` out of a pytree with a leading seed axis."""
+    return jax.tree.map(lambda x: x[seed], tree)
+
+
+# -------------------------------------------------------------------------------------------- npz I/O
+
+
+def export_npz(path: str | Path, policy: Policy) -> Path:
+    """Write the plain-numpy form of ``policy`` (layout in the module docstring)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    arrays: dict[str, np.ndarray] = {}
+    for head, variables in (("policy", policy.params.policy), ("value", policy.params.value)):
+        flat = traverse_util.flatten_dict(jax.device_get(variables["params"]), sep="/")
+        for name, x in flat.items():
+            arrays[f"{head}/{name.removeprefix('mlp/')}"] = np.asarray(x, np.float32)
+    normalized = bool(policy.meta.get("normalize_observations", True))
+    n = policy.networks.observation_size
+    arrays["obs_mean"] = np.asarray(policy.normalizer.mean if normalized else np.zeros(n), np.float32)
+    arrays["obs_std"] = np.asarray(policy.normalizer.std if normalized else np.ones(n), np.float32)
+    meta = {
+        **policy.meta,
+        "format": NPZ_FORMAT,
+        "observation_size": policy.networks.observation_size,
+        "action_size": policy.networks.action_size,
+        "hidden_sizes": list(policy.networks.actor.hidden_sizes),
+        "normalize_observations": normalized,
+    }
+    arrays["meta"] = np.asarray(json.dumps(meta))
+    tmp = path.with_name(path.name + ".tmp.npz")
+    np.savez(tmp, **arrays)
+    tmp.replace(path)
+    return path
+
+
+def _load_npz(path: Path) -> Policy:
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {k: data[k] for k in data.files}
+    except (OSError, ValueError) as e:
+        raise UsageError(f"policy file {str(path)!r} is unreadable ({e})") from None
+    if "meta" not in arrays:
+        raise UsageError(f"{str(path)!r} is not a harv_jax policy (no meta)")
+    meta = json.loads(str(arrays.pop("meta")))
+    if meta.get("format") != NPZ_FORMAT:
+        raise UsageError(f"{str(path)!r} has format {meta.get('format')!r}; this code reads {NPZ_FORMAT}")
+    networks = make_ppo_networks(meta["observation_size"], meta["action_size"], tuple(meta["hidden_sizes"]))
+    template = jax.eval_shape(networks.init, jax.random.key(0))
+    heads = {}
+    for head, t in (("policy", template.policy), ("value", template.value)):
+        flat_t = traverse_util.flatten_dict(t["params"], sep="/")
+        flat = {}
+        for name, leaf in flat_t.items():
+            key = f"{head}/{name.removeprefix('mlp/')}"
+            if key not in arrays or arrays[key].shape != leaf.shape:
+                got = arrays[key].shape if key in arrays else "missing"
+                raise UsageError(f"{str(path)!r}: {key} is {got}, expected {leaf.shape}")
+            flat[name] = jnp.asarray(arrays[key])
+        heads[head] = {"params": traverse_util.unflatten_dict(flat, sep="/")}
+    params = PPOParams(heads["policy"], heads["value"])
+    # The npz stores (mean, std); rebuild statistics with exactly that std (count 1, m2 = std^2 - eps).
+    std = np.asarray(arrays["obs_std"], np.float64)
+    m2 = np.maximum(std**2 - obs_norm.VAR_EPS, 0.0)
+    normalizer = obs_norm.RunningStats(
+        count=jnp.ones((), jnp.float32),
+        mean=jnp.asarray(arrays["obs_mean"], jnp.float32),
+        m2=jnp.asarray(m2, jnp.float32),
+    )
+    return make_policy(params, normalizer, networks, bool(meta["normalize_observations"]), meta)
+
+
+def _load_checkpoint(path: Path, seed: int) -> Policy:
+    from harv_jax.ppo import checkpoint
+    from harv_jax.ppo.config import from_dict
+
+    payload = checkpoint.read(path)
+    cfg = from_dict(json.loads(payload["config"]), source=path.name)
+    if not 0 <= seed < cfg.num_seeds:
+        raise UsageError(f"--seed {seed} is outside the checkpoint's {cfg.num_seeds} seeds")
+    paths = json.loads(payload["paths"])
+    meta_sizes = _sizes_from_paths(paths, payload)
+    networks = make_ppo_networks(*meta_sizes, cfg.hidden_sizes, cfg.init_log_std)
+    template = {
+        "params": jax.eval_shape(networks.init, jax.random.key(0)),
+        "normalizer": jax.eval_shape(lambda: obs_norm.init_stats(networks.observation_size)),
+    }
+    leaves_with_path, treedef = jax.tree_util.tree_flatten_with_path(template)
+    index = {p: i for i, p in enumerate(paths)}
+    out = []
+    for kp, leaf in leaves_with_path:
+        # template paths "['params'].policy[...]" -> checkpoint paths ".params.policy[...]"
+        name = "." + jax.tree_util.keystr(kp)[2:].replace("']", "", 1)
+        if name not in index:
+            raise UsageError(f"checkpoint {path.name} has no leaf {name}")
+        x = np.asarray(payload["leaves"][str(index[name])])[seed]
+        if x.shape != leaf.shape:
+            raise UsageError(f"checkpoint {path.name}: {name} is {x.shape}, expected {leaf.shape}")
+        out.append(jnp.asarray(x))
+    tree = jax.tree_util.tree_unflatten(treedef, out)
+    meta = {"source": str(path), "seed": seed, "period": payload["period"],
+            "normalize_observations": cfg.normalize_observations}  # fmt: skip
+    return make_policy(tree["params"], tree["normalizer"], networks, cfg.normalize_observations, meta)
+
+
+def _sizes_from_paths(paths: list[str], payload: dict[str, Any]) -> tuple[int, int]:
+    obs_i = paths.index(".normalizer.mean")
+    log_std_i = paths.index(".params.policy['params']['log_std']")
+    obs_size = int(np.asarray(payload["leaves"][str(obs_i)]).shape[-1])
+    act_size = int(np.asarray(payload["leaves"][str(log_std_i)]).shape[-1])
+    return obs_size, act_size
+
+
+def load(path: str | Path, seed: int = 0) -> Policy:
+    """Load a trained policy from a run folder, a ``.npz`` export or a checkpoint file.
+
+    Args:
+        path: ``<run>`` (uses ``<run>/policy/policy.npz``), ``*.npz`` or ``ckpt_*.msgpack``.
+        seed: learner index, for checkpoints of multi-seed runs (the ``.npz`` holds one learner).
+
+    Raises:
+        UsageError: missing or unreadable file, wrong format or shapes.
+    """
+    p = Path(path)
+    if p.is_dir():
+        candidates = [p / "policy" / "policy.npz", p / "policy.npz"]
+        found = next((c for c in candidates if c.is_file()), None)
+        if found is None:
+            raise UsageError(f"no policy.npz in {str(p)!r} (expected {candidates[0]})")
+        p = found
+    if not p.is_file():
+        raise UsageError(f"policy {str(p)!r} does not exist")
+    if p.suffix == ".msgpack":
+        return _load_checkpoint(p, seed)
+    return _load_npz(p)
+
+
+# -------------------------------------------------------------------------------------------- jax.export
+
+
+def export_available() -> bool:
+    """True if ``jax.export`` serialization works here (it needs the ``flatbuffers`` package)."""
+    import importlib.util
+
+    return importlib.util.find_spec("flatbuffers") is not None
+
+
+def export_stablehlo(path: str | Path, policy: Policy) -> Path:
+    """Serialize ``policy.deterministic`` for obs ``[b, O]`` float32 (symbolic b) with ``jax.export``.
+
+    Raises:
+        UsageError: the ``flatbuffers`` package (needed by jax.export serialization) is not installed.
+    """
+    if not export_available():
+        raise UsageError("jax.export serialization needs the 'flatbuffers' package: pip install flatbuffers")
+    (b,) = jax.export.symbolic_shape("b")
+    spec = jax.ShapeDtypeStruct((b, policy.networks.observation_size), jnp.float32)
+    exported = jax.export.export(policy.deterministic)(spec)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_bytes(exported.serialize())
+    tmp.replace(path)
+    return path
+
+
+def load_exported(path: str | Path) -> Callable[[jax.Array], jax.Array]:
+    """Read a :func:`export_stablehlo` file: returns ``obs [b, O] -> action [b, A]``."""
+    p = Path(path)
+    if not p.is_file():
+        raise UsageError(f"exported policy {str(p)!r} does not exist")
+    exported = jax.export.deserialize(bytearray(p.read_bytes()))
+    return exported.call

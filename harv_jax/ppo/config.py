@@ -1,0 +1,197 @@
+"""PPO configuration: a frozen dataclass, presets from ``experiments/presets/*.toml``, validation.
+
+A preset file has a ``[ppo]`` table (fields of :class:`PPOConfig`) and an optional ``[env]`` table that is
+passed to the environment's config unchanged. Every bad value raises :class:`harv_jax.errors.UsageError`
+with a one-line message naming the value and what is allowed. Derived quantities (updates, periods, batch
+sizes) are computed by functions and never written back into the config.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from harv_jax.errors import UsageError
+
+#: Folder of the preset files (repository checkout; the package is installed editable).
+PRESET_DIR = Path(__file__).resolve().parents[2] / "experiments" / "presets"
+LR_SCHEDULES = ("constant", "linear")
+
+
+@dataclass(frozen=True)
+class PPOConfig:
+    """PPO hyperparameters. Shapes and loop lengths are static (closed over by ``make_train``)."""
+
+    total_steps: int = 1_000_000  # env steps per seed (rounded up to whole log periods)
+    num_envs: int = 256  # parallel envs per seed (sharded over devices)
+    unroll: int = 32  # env steps per env per update (rollout length)
+    epochs: int = 4  # passes over each rollout
+    minibatches: int = 8  # minibatches per epoch (num_envs * unroll must divide)
+    lr: float = 3e-4  # Adam learning rate
+    lr_schedule: str = "constant"  # "constant" or "linear" (linear decay to 0 over the run)
+    max_grad_norm: float = 0.5  # global-norm gradient clip
+    gamma: float = 0.99  # discount (the paper's)
+    gae_lambda: float = 0.95  # GAE lambda
+    clip_eps: float = 0.2  # PPO ratio clip
+    clip_value_eps: float = 0.0  # value-loss clip range; 0 disables value clipping
+    vf_coef: float = 0.5  # value-loss coefficient
+    ent_coef: float = 0.0  # entropy bonus (SB3 default 0)
+    reward_scale: float = 0.01  # multiplies env rewards before GAE (FINDINGS: x0.01)
+    normalize_advantage: bool = True  # standardise advantages per minibatch
+    normalize_observations: bool = True  # running mean/std normalisation in the learner
+    init_log_std: float = -0.5  # initial Gaussian log std (actions in [-1, 1])
+    hidden_sizes: tuple[int, ...] = (256, 128)  # actor and critic hidden widths (tanh)
+    num_seeds: int = 1  # independent policies trained together (vmap over seeds)
+    seed: int = 0  # base seed; seed s uses fold_in(key(seed), s)
+    num_periods: int = 20  # host log periods over the run
+    checkpoint_every: int = 1  # checkpoint every K periods (and at the end)
+
+    def replace(self, **changes: Any) -> PPOConfig:
+        """Copy with fields changed, validated."""
+        return validate(dataclasses.replace(self, **changes))
+
+
+_FIELDS = {f.name: f for f in dataclasses.fields(PPOConfig)}
+_POSITIVE_INT = ("total_steps", "num_envs", "unroll", "epochs", "minibatches", "num_seeds", "num_periods",
+                 "checkpoint_every")  # fmt: skip
+_POSITIVE_FLOAT = ("lr", "max_grad_norm", "clip_eps", "reward_scale")
+_NONNEG_FLOAT = ("clip_value_eps", "vf_coef", "ent_coef")
+
+
+#: Config fields whose command-line flag has a different name.
+_FLAG_NAMES = {"total_steps": "--steps", "num_seeds": "--seeds"}
+
+
+def _flag(name: str) -> str:
+    return _FLAG_NAMES.get(name, "--" + name.replace("_", "-"))
+
+
+def validate(cfg: PPOConfig) -> PPOConfig:
+    """Check every field; return ``cfg`` or raise a one-line UsageError."""
+    for name in _POSITIVE_INT:
+        v = getattr(cfg, name)
+        if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
+            raise UsageError(f"{_flag(name)} {v!r} must be a positive integer")
+    for name in _POSITIVE_FLOAT + _NONNEG_FLOAT + ("gamma", "gae_lambda", "init_log_std"):
+        v = getattr(cfg, name)
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise UsageError(f"{_flag(name)} {v!r} must be a finite number")
+    for name in _POSITIVE_FLOAT:
+        if getattr(cfg, name) <= 0:
+            raise UsageError(f"{_flag(name)} {getattr(cfg, name)} must be > 0")
+    for name in _NONNEG_FLOAT:
+        if getattr(cfg, name) < 0:
+            raise UsageError(f"{_flag(name)} {getattr(cfg, name)} must be >= 0")
+    if not 0.0 < cfg.gamma <= 1.0:
+        raise UsageError(f"--gamma {cfg.gamma} must be in (0, 1]")
+    if not 0.0 <= cfg.gae_lambda <= 1.0:
+        raise UsageError(f"--gae-lambda {cfg.gae_lambda} must be in [0, 1]")
+    if cfg.lr_schedule not in LR_SCHEDULES:
+        raise UsageError(f"--lr-schedule {cfg.lr_schedule!r} is not one of {', '.join(LR_SCHEDULES)}")
+    if (
+        not isinstance(cfg.hidden_sizes, tuple)
+        or not cfg.hidden_sizes
+        or any(isinstance(h, bool) or not isinstance(h, int) or h <= 0 for h in cfg.hidden_sizes)
+    ):
+        raise UsageError(f"hidden_sizes {cfg.hidden_sizes!r} must be a non-empty list of positive integers")
+    if isinstance(cfg.seed, bool) or not isinstance(cfg.seed, int) or cfg.seed < 0:
+        raise UsageError(f"--seed {cfg.seed!r} must be a non-negative integer")
+    for name in ("normalize_advantage", "normalize_observations"):
+        if not isinstance(getattr(cfg, name), bool):
+            raise UsageError(f"{name} {getattr(cfg, name)!r} must be true or false")
+    if (cfg.num_envs * cfg.unroll) % cfg.minibatches:
+        raise UsageError(
+            f"--minibatches {cfg.minibatches} must divide num_envs * unroll = {cfg.num_envs * cfg.unroll}"
+        )
+    return cfg
+
+
+def check_devices(cfg: PPOConfig, num_devices: int) -> None:
+    """Raise UsageError unless ``num_envs`` splits evenly over ``num_devices``."""
+    if cfg.num_envs % num_devices:
+        raise UsageError(f"--num-envs {cfg.num_envs} is not divisible by the {num_devices} available devices")
+
+
+def from_dict(values: dict[str, Any], base: PPOConfig | None = None, source: str = "config") -> PPOConfig:
+    """Build a validated config from ``base`` (default PPOConfig()) and a dict of field values."""
+    changes: dict[str, Any] = {}
+    for k, v in values.items():
+        if k not in _FIELDS:
+            raise UsageError(f"unknown PPO setting {k!r} in {source}; allowed: {', '.join(_FIELDS)}")
+        if k == "hidden_sizes" and isinstance(v, list):
+            v = tuple(v)
+        if _FIELDS[k].type in ("float",) and isinstance(v, int) and not isinstance(v, bool):
+            v = float(v)
+        changes[k] = v
+    return validate(dataclasses.replace(base or PPOConfig(), **changes))
+
+
+def to_dict(cfg: PPOConfig) -> dict[str, Any]:
+    """Plain JSON-able dict of the config."""
+    d = dataclasses.asdict(cfg)
+    d["hidden_sizes"] = list(cfg.hidden_sizes)
+    return d
+
+
+def available_presets() -> list[str]:
+    """Names of the preset files in ``experiments/presets``."""
+    return sorted(p.stem for p in PRESET_DIR.glob("*.toml"))
+
+
+def load_preset(name: str) -> tuple[PPOConfig, dict[str, Any]]:
+    """Load a preset by name (``experiments/presets/<name>.toml``) or by path to a ``.toml`` file.
+
+    Returns:
+        (validated PPOConfig, env overrides dict from the ``[env]`` table).
+    """
+    path = Path(name) if name.endswith(".toml") else PRESET_DIR / f"{name}.toml"
+    if not path.is_file():
+        allowed = ", ".join(available_presets()) or "(none found)"
+        raise UsageError(f"unknown preset {name!r}; available: {allowed}")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as e:
+        raise UsageError(f"preset {str(path)!r} is not valid TOML: {e}") from None
+    unknown = set(data) - {"ppo", "env", "description"}
+    if unknown:
+        raise UsageError(f"preset {str(path)!r} has unknown tables {sorted(unknown)}; allowed: ppo, env")
+    cfg = from_dict(data.get("ppo", {}), source=f"preset {path.name}")
+    return cfg, dict(data.get("env", {}))
+
+
+# ------------------------------------------------------------------------------------------ derived values
+
+
+def batch_size(cfg: PPOConfig) -> int:
+    """Transitions per update per seed: num_envs * unroll."""
+    return cfg.num_envs * cfg.unroll
+
+
+def minibatch_size(cfg: PPOConfig) -> int:
+    """Transitions per minibatch per seed."""
+    return batch_size(cfg) // cfg.minibatches
+
+
+def updates_per_period(cfg: PPOConfig) -> int:
+    """PPO updates inside one compiled period."""
+    updates = math.ceil(cfg.total_steps / batch_size(cfg))
+    return max(1, math.ceil(updates / cfg.num_periods))
+
+
+def num_periods(cfg: PPOConfig) -> int:
+    """Host periods needed to reach ``total_steps`` with whole periods."""
+    return math.ceil(cfg.total_steps / (updates_per_period(cfg) * batch_size(cfg)))
+
+
+def steps_per_period(cfg: PPOConfig) -> int:
+    """Env steps per seed in one period."""
+    return updates_per_period(cfg) * batch_size(cfg)
+
+
+def total_updates(cfg: PPOConfig) -> int:
+    """PPO updates in the whole run (whole periods)."""
+    return num_periods(cfg) * updates_per_period(cfg)
