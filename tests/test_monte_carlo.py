@@ -112,7 +112,8 @@ def test_common_random_numbers():
         (["--duration", "-5"], "--duration -5"),
         (["--target-alpha", "3"], "--target-alpha 3"),
         (["--controller", "smc,smc"], "twice"),
-        (["--controller", "rl"], "needs a trained policy"),
+        (["--controller", "rl"], "needs --policy PATH"),
+        (["--controller", "hybrid"], "not available yet"),
     ],
 )
 def test_bad_flags_one_line_error(tmp_path, args, fragment):

@@ -39,7 +39,16 @@ def build_controller(name: str, policy: str | None):
         from harv_jax.control.smc import make_smc
 
         return make_smc()
-    raise UsageError(f"controller {name!r} needs a trained policy, which this version does not ship yet")
+    if name == "rl":
+        if not policy:
+            raise UsageError(
+                "controller 'rl' needs --policy PATH (a training run folder, .npz or checkpoint)"
+            )
+        from harv_jax.control.rl import make_rl_controller
+        from harv_jax.policy import load
+
+        return make_rl_controller(load(policy).deterministic)
+    raise UsageError(f"controller {name!r} is not available yet (allowed now: smc, rl)")
 
 
 def validate(runs: int, target_alpha: float, duration: float, chunk: int) -> None:

@@ -146,6 +146,11 @@ def _finish_obs(obs: jnp.ndarray) -> jnp.ndarray:
     return jnp.clip(obs, jnp.asarray(OBS_LOW, obs.dtype), jnp.asarray(OBS_HIGH, obs.dtype))
 
 
+def observation(x_wind: jnp.ndarray, target_rad: jnp.ndarray) -> jnp.ndarray:
+    """[11] noise-free observation as the policy sees it in the env (non-finite -> 0, clipped to the box)."""
+    return _finish_obs(clean_observation(x_wind, target_rad))
+
+
 class Env(NamedTuple):
     """A pure environment: ``reset(key, params)``, ``step(key, state, action, params)``.
 
