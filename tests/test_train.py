@@ -264,7 +264,9 @@ def test_cli_bad_flags_one_line(monkeypatch, capsys, tmp_path, args, message):
 
 
 def test_cli_num_envs_not_divisible_by_devices(monkeypatch, capsys, tmp_path):
-    monkeypatch.setattr(jax, "device_count", lambda: 2)
+    from harv_jax.ppo import train as ppo_train
+
+    monkeypatch.setattr(ppo_train, "default_devices", lambda: ["d0", "d1"])
     code, err = _cli(
         monkeypatch, capsys, "--num-envs", "3", "--minibatches", "1", "--out", str(tmp_path / "o")
     )

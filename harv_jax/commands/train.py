@@ -156,6 +156,12 @@ def _fmt(row: dict[str, Any], key: str) -> str:
     return f"{v.mean():.4g}" if v.size else "nan"
 
 
+def _nanstat(fn: Any, v: np.ndarray) -> float:
+    """``fn`` over the finite entries of ``v``; NaN (without a warning) if there are none."""
+    v = v[np.isfinite(v)]
+    return float(fn(v)) if v.size else math.nan
+
+
 def export_policies(out_dir: Path, state: Any, trainer: Any, cfg: Any, history: list[dict[str, Any]]) -> int:
     """Write ``policy/policy_seed<i>.npz`` per seed and ``policy.npz``/``policy.stablehlo`` of the best."""
     import jax
@@ -218,9 +224,9 @@ def run_train(
     import jax
 
     from harv_jax.outdir import prepare_out_dir
-    from harv_jax.ppo.train import harv_episode_metrics, make_train, run_training
+    from harv_jax.ppo.train import default_devices, harv_episode_metrics, make_train, run_training
 
-    ppo_config.check_devices(cfg, jax.device_count())
+    ppo_config.check_devices(cfg, len(default_devices()))
     env, env_params = make_harv_env(env_table)
     if resume is None:
         out_dir = prepare_out_dir(out, force)
@@ -296,8 +302,8 @@ def run_train(
         if history and k in history[-1]:
             first = np.asarray(history[0][k], np.float64).reshape(-1)
             last = np.asarray(history[-1][k], np.float64).reshape(-1)
-            summary[k] = {"first_mean": float(np.nanmean(first)), "last_mean": float(np.nanmean(last)),
-                          "last_std": float(np.nanstd(last))}  # fmt: skip
+            summary[k] = {"first_mean": _nanstat(np.nanmean, first), "last_mean": _nanstat(np.nanmean, last),
+                          "last_std": _nanstat(np.nanstd, last)}  # fmt: skip
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary
 

@@ -199,6 +199,18 @@ def harv_episode_metrics(info: dict[str, Any]) -> dict[str, jax.Array]:
     }
 
 
+def default_devices() -> list[jax.Device]:
+    """Devices to shard envs over by default: all of them on accelerators, one on CPU.
+
+    On CPU one device already uses every core (XLA's intra-op thread pool). Several host devices
+    (``--xla_force_host_platform_device_count``) combined with several seeds deadlocked inside XLA's CPU
+    runtime in our runs with the HARV env (jax 0.10.2; the toy env did not), so CPU sharding is opt-in:
+    pass ``devices`` explicitly.
+    """
+    devices = jax.devices()
+    return devices[:1] if devices[0].platform == "cpu" else devices
+
+
 def make_train(
     env: Any,
     cfg: PPOConfig,
@@ -213,14 +225,15 @@ def make_train(
         cfg: validated PPO config; its shapes and loop lengths are closed over (static).
         env_params: an example of the env parameter pytree (used for shapes only; the real one is an argument
             of ``init``/``period`` so that it can change without recompiling).
-        devices: devices to shard the envs over (default: all ``jax.devices()``).
+        devices: devices to shard the envs over (default :func:`default_devices`: all accelerators, or one
+            CPU device).
         episode_metrics_fn: one env's ``info`` -> dict of scalars, averaged over the episodes that end in a
             period and reported as ``episode/<name>`` (default :func:`default_episode_metrics`).
 
     Returns:
         A :class:`Trainer`.
     """
-    devices = list(jax.devices() if devices is None else devices)
+    devices = list(default_devices() if devices is None else devices)
     ppo_config.check_devices(cfg, len(devices))
     mesh = Mesh(np.asarray(devices), (ENV_AXIS,))
     obs_size, act_size = env_sizes(env, env_params)
