@@ -22,7 +22,6 @@ import datetime as _dt
 import json
 import os
 import platform
-import re
 import sys
 import time
 from pathlib import Path
@@ -53,6 +52,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks import numpy_harv  # noqa: E402
+from benchmarks.common import machine_name  # noqa: E402
 from harv_jax.aircraft import harv  # noqa: E402
 from harv_jax.dynamics import actuator_step, from_wind, rk4_body_step  # noqa: E402
 
@@ -63,25 +63,6 @@ TARGET_RATIO = 1000.0
 #: Reset bounds of the paper (MODEL.md), [V, alpha, beta, p, q, r, mu, gamma, chi, h].
 RESET_LO = np.array([100, -0.175, -0.262, -2.094, -1.047, -0.524, -np.pi, -1.047, -np.pi, 20000.0])
 RESET_HI = np.array([1500, 1.047, 0.262, 2.094, 1.047, 0.524, np.pi, 1.047, np.pi, 30000.0])
-
-
-def machine_name(override: str | None) -> str:
-    """``override`` or e.g. ``cpu-2core`` / ``gpu-h100``, sanitized for a file name."""
-    if override:
-        name = override
-    else:
-        dev = jax.devices()[0]
-        if dev.platform == "cpu":
-            try:
-                n = len(os.sched_getaffinity(0))
-            except AttributeError:  # not on Linux
-                n = os.cpu_count() or 0
-            name = f"cpu-{n}core"
-        else:
-            kind = dev.device_kind.lower()
-            m = re.search(r"\b([a-z]\d{2,4}[a-z]?)\b", kind)  # h100, a100, h200, l4 ...
-            name = f"{dev.platform}-{m.group(1) if m else kind}"
-    return re.sub(r"[^a-z0-9._-]+", "-", name.lower()).strip("-")
 
 
 def make_fleet(seed: int, batch: int, dtype) -> tuple:

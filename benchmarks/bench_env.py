@@ -20,7 +20,7 @@ import argparse
 import json
 import os
 import platform
-import re
+import sys
 import time
 from pathlib import Path
 
@@ -28,19 +28,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root, for benchmarks.*
+
+from benchmarks.common import machine_name  # noqa: E402
 from harv_jax.env import EnvConfig, default_randomization_params, make_env
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
 CPU_NUM_ENVS = (1, 16, 256, 1024, 4096)
 GPU_NUM_ENVS = (256, 1024, 4096, 16384, 65536)
-
-
-def machine_name() -> str:
-    """Short machine label from the default device, e.g. ``cpu_2core`` or ``gpu_nvidia_h100_80gb_hbm3``."""
-    dev = jax.devices()[0]
-    if dev.platform == "cpu":
-        return f"cpu_{os.cpu_count()}core"
-    return re.sub(r"[^a-z0-9]+", "_", f"{dev.platform}_{dev.device_kind}".lower()).strip("_")
 
 
 def bench_vectorized(
@@ -149,7 +144,7 @@ def main(argv: list[str] | None = None) -> dict:
         num_envs = tuple(int(v) for v in args.num_envs.split(","))
     else:
         num_envs = CPU_NUM_ENVS if dev.platform == "cpu" else GPU_NUM_ENVS
-    machine = args.machine or machine_name()
+    machine = machine_name(args.machine)
     load_before = os.getloadavg() if hasattr(os, "getloadavg") else None
 
     results = []

@@ -30,7 +30,6 @@ import datetime as _dt
 import json
 import os
 import platform
-import re
 import sys
 import time
 from pathlib import Path
@@ -41,6 +40,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks.common import machine_name  # noqa: E402
 from harv_jax.env import EnvConfig, default_params, make_env  # noqa: E402
 from harv_jax.ppo import config as ppo_config  # noqa: E402
 from harv_jax.ppo.config import PPOConfig  # noqa: E402
@@ -48,24 +48,6 @@ from harv_jax.ppo.train import harv_episode_metrics, make_train, seed_keys  # no
 
 HIDDEN = (256, 128)
 OBS, ACT = 11, 3
-
-
-def machine_name(override: str | None) -> str:
-    """``override`` or e.g. ``cpu-2core`` / ``gpu-h100``, sanitized for a file name."""
-    if override:
-        name = override
-    else:
-        dev = jax.devices()[0]
-        if dev.platform == "cpu":
-            try:
-                n = len(os.sched_getaffinity(0))
-            except AttributeError:
-                n = os.cpu_count() or 0
-            name = f"cpu-{n}core"
-        else:
-            m = re.search(r"\b([a-z]\d{2,4}[a-z]?)\b", dev.device_kind.lower())
-            name = f"{dev.platform}-{m.group(1) if m else dev.device_kind}"
-    return re.sub(r"[^a-z0-9._-]+", "-", name.lower()).strip("-")
 
 
 def dense_flops(sizes: list[int]) -> int:
