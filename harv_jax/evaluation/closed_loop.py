@@ -173,10 +173,27 @@ def evaluate(
         (RunMetrics, Trajectory with every ``record_every``-th sample).
     """
     res = closed_loop(controller, params, x0, reference_rad, key, n_steps, dt_s, delta0_rad, 1)
+    m, _ = score(res, reference_rad, params, dt_s, criterion, envelope)
+    traj = jax.tree.map(lambda a: a[::record_every], res.traj)
+    return m, traj
+
+
+def score(
+    res: ClosedLoopResult,
+    reference_rad: jnp.ndarray,
+    params: AircraftParams,
+    dt_s: float = DEFAULT_DT_S,
+    criterion: RecoveryCriterion | None = None,
+    envelope: Envelope | None = None,
+) -> tuple[RunMetrics, jnp.ndarray]:
+    """Metrics of a full-rate ``closed_loop`` result.
+
+    Returns:
+        (RunMetrics, x_all [n_steps + 1, 10]: the recorded states with the final state appended).
+    """
     x_all = jnp.concatenate([res.traj.x_wind, res.x_final_wind[None]], axis=0)
     m = compute_metrics(
         x_all, res.traj.delta_rad, jnp.asarray(reference_rad, x_all.dtype), params, dt_s,
         res.nonfinite, criterion, envelope,
     )  # fmt: skip
-    traj = jax.tree.map(lambda a: a[::record_every], res.traj)
-    return m, traj
+    return m, x_all

@@ -21,8 +21,8 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
-from harv_jax.evaluation.closed_loop import closed_loop
-from harv_jax.evaluation.metrics import OUTCOME_NAMES, RunMetrics, compute_metrics, tracking_errors
+from harv_jax.evaluation.closed_loop import closed_loop, score
+from harv_jax.evaluation.metrics import OUTCOME_NAMES, RunMetrics, tracking_errors
 from harv_jax.scenarios import sample_table_states
 
 #: State components the paper's Monte Carlo samples (the others start at 0 / h0).
@@ -109,8 +109,7 @@ def _one_run(
     record_every: int,
 ) -> MCRunOutput:
     res = closed_loop(controller, params, x0, reference_rad, key, n_steps, dt_s)
-    x_all = jnp.concatenate([res.traj.x_wind, res.x_final_wind[None]], axis=0)
-    m = compute_metrics(x_all, res.traj.delta_rad, reference_rad, params, dt_s, res.nonfinite)
+    m, x_all = score(res, reference_rad, params, dt_s)
     n_term = max(1, int(round(TERMINAL_WINDOW_S / dt_s)))
     term = jnp.mean(tracking_errors(x_all[-n_term:], reference_rad), axis=0)
     hist = x_all[:-1:record_every][:, jnp.array([1, 2, 6])]
