@@ -29,8 +29,9 @@ def _run(monkeypatch, capsys, *args):
 @pytest.mark.parametrize(
     "args, needle",
     [
-        (["--controller", "rl"], "not available yet"),
-        (["--controller", "hybrid"], "not available yet"),
+        (["--controller", "rl", "--policy", "nowhere.npz"], "policy 'nowhere.npz' does not exist"),
+        (["--controller", "hybrid", "--zeta", "bang"], "--zeta 'bang' is unknown"),
+        (["--controller", "hybrid", "--policy", "shipped:best"], "shipped policy 'best' is unknown"),
         (["--controller", "pid"], "--controller 'pid' is unknown"),
         (["--target-alpha", "2.0"], "--target-alpha 2.0 rad is outside"),
         (["--target-alpha", "nan"], "--target-alpha nan"),
@@ -76,7 +77,7 @@ def test_out_dir_is_not_overwritten_without_force(monkeypatch, capsys, tmp_path)
     assert (out / "keep.txt").exists()
 
 
-def _check_outputs(out, n_rows_min):
+def _check_outputs(out, n_rows_min, controller="smc"):
     names = {p.name for p in out.iterdir()}
     assert {"trajectory.csv", "trajectory.png", "sliding.png", "metrics.json"} <= names
     header = (out / "trajectory.csv").read_text().splitlines()[0].split(",")
@@ -85,7 +86,7 @@ def _check_outputs(out, n_rows_min):
     assert data.shape[0] >= n_rows_min and data.shape[1] == len(header)
     doc = json.loads((out / "metrics.json").read_text())
     assert doc["metrics"]["outcome_name"] in OUTCOME_NAMES
-    assert doc["controller"] == "smc"
+    assert doc["controller"] == controller
     for key in (
         "t_recover_s",
         "altitude_loss_ft",
@@ -146,3 +147,17 @@ def test_fly_spin(monkeypatch, capsys, tmp_path):
     s_alpha = data[:, header.index("s_alpha")]
     assert np.all(np.isnan(s_alpha[:50])) and np.all(np.isfinite(s_alpha[50:]))  # controller off, then on
     np.testing.assert_allclose(data[:50, header.index("de_cmd")], -0.436)  # pro-spin command held
+
+
+def test_fly_hybrid_with_shipped_partial_policy(monkeypatch, capsys, tmp_path):
+    code, out, err = _run(
+        monkeypatch, capsys, "--controller", "hybrid", "--policy", "shipped:partial", "--scenario", "random",
+        "--duration", DURATION, "--out", str(tmp_path / "h"),
+    )  # fmt: skip
+    assert code == 0, err
+    data, header, doc = _check_outputs(tmp_path / "h", 50, "hybrid")
+    assert (tmp_path / "h" / "hybrid.png").stat().st_size > 0
+    z = data[:, header.index("zeta")]
+    assert np.all((z == 0) | (z == 1))  # the paper's two-valued schedule
+    assert doc["policy"] == "shipped:partial" and doc["zeta_schedule"] == "hysteresis"
+    assert set(doc["certificate"]) == {"alpha", "beta", "mu"}

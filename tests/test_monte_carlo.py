@@ -112,8 +112,8 @@ def test_common_random_numbers():
         (["--duration", "-5"], "--duration -5"),
         (["--target-alpha", "3"], "--target-alpha 3"),
         (["--controller", "smc,smc"], "twice"),
-        (["--controller", "rl"], "needs --policy PATH"),
-        (["--controller", "hybrid"], "not available yet"),
+        (["--controller", "rl", "--policy", "nowhere.npz"], "policy 'nowhere.npz' does not exist"),
+        (["--controller", "smc,hybrid", "--zeta", "bang"], "--zeta 'bang' is unknown"),
     ],
 )
 def test_bad_flags_one_line_error(tmp_path, args, fragment):

@@ -13,9 +13,7 @@ import typer
 
 from harv_jax.errors import UsageError
 
-#: Controllers that exist now, and those announced for later issues.
-CONTROLLERS = ("smc",)
-FUTURE_CONTROLLERS = ("rl", "hybrid")
+CONTROLLERS = ("smc", "rl", "hybrid")
 SCENARIOS = ("spin", "random")
 SWITCHING = ("sat", "sign")
 DT_S = 0.01
@@ -32,11 +30,6 @@ def validate_options(
     controller: str, switching: str, target_alpha: float, duration: float, spin_s: float
 ) -> None:
     """Raise UsageError (one line naming the value and what is allowed) for a bad option."""
-    if controller in FUTURE_CONTROLLERS:
-        raise UsageError(
-            f"--controller {controller!r} is not available yet (it comes with the RL/hybrid issues); "
-            f"available: {', '.join(CONTROLLERS)}"
-        )
     if controller not in CONTROLLERS:
         raise UsageError(f"--controller {controller!r} is unknown; allowed: {', '.join(CONTROLLERS)}")
     if switching not in SWITCHING:
@@ -107,14 +100,18 @@ def load_state_file(path: Path) -> dict[str, float]:
 
 
 @functools.lru_cache(maxsize=8)
-def _runner(switching: str, n_steps: int):
+def _runner(controller_name: str, switching: str, n_steps: int, policy: str | None, zeta: str):
     """Jitted closed-loop evaluation (cached per process so repeated calls reuse one compile)."""
     import jax
 
+    from harv_jax.commands.mc import build_controller
     from harv_jax.control import SMCConfig, make_smc
     from harv_jax.evaluation import evaluate
 
-    controller = make_smc(SMCConfig(switching=switching))
+    if controller_name == "smc":
+        controller = make_smc(SMCConfig(switching=switching))
+    else:
+        controller = build_controller(controller_name, policy, zeta)
 
     @functools.partial(jax.jit, compiler_options=FAST_COMPILE)
     def run(params, x0_body, delta0, reference, key):
@@ -143,12 +140,17 @@ def run_fly(
     seed: int,
     switching: str = "sat",
     spin_s: float = 30.0,
+    controller: str = "smc",
+    policy: str | None = None,
+    zeta: str = "hysteresis",
 ) -> dict:
-    """Fly the SMC from a scenario; returns host arrays and metrics (no files written).
+    """Fly a controller (smc, rl, hybrid) from a scenario; returns host arrays and metrics (no files).
 
     Returns:
         dict with t_s [T], x_wind [T, 10], delta_rad [T, 3], u_cmd_rad [T, 3], s [T, 3], e [T, 3]
-        (NaN before engagement), t_engage_s, metrics (dict), spin (dict or None), x0 (dict).
+        (NaN before engagement and for rl), hybrid (dict of zeta, fallback, u_rl_rad, u_fb_rad [T, ...],
+        hybrid only), t_engage_s, metrics (dict), spin (dict or None), x0 (dict), certificate (smc and
+        hybrid: ``harv_jax.evaluation.certificate.empirical_certificate``).
     """
     import jax
     import jax.numpy as jnp
@@ -188,10 +190,30 @@ def run_fly(
         body0, delta0 = from_wind(x0), jnp.zeros((3,), jnp.float32)
         x0_dict = {n: float(v) for n, v in zip(WIND_STATE_NAMES, np.asarray(x0), strict=True)}
     reference = jnp.asarray([target_alpha_rad, 0.0, 0.0], jnp.float32)
-    m, traj = _runner(switching, n_steps)(params, body0, delta0, reference, key_ctrl)
+    m, traj = _runner(controller, switching, n_steps, policy, zeta)(
+        params, body0, delta0, reference, key_ctrl
+    )
     n_pre = pre_x.shape[0]
     nan3 = np.full((n_pre, 3), np.nan)
     t_engage = n_pre * DT_S
+    info = {k: np.asarray(v) for k, v in traj.info.items()}
+    n_run = traj.x_wind.shape[0]
+    for k in ("s", "e"):
+        info.setdefault(k, np.full((n_run, 3), np.nan))
+    hybrid = None
+    if controller == "hybrid":
+        hybrid = {k: np.concatenate([np.full((n_pre,) + info[k].shape[1:], np.nan), info[k]])
+                  for k in ("zeta", "fallback", "u_rl_rad", "u_fb_rad")}  # fmt: skip
+    certificate = None
+    if controller != "rl":
+        from harv_jax.control import default_gains
+        from harv_jax.evaluation.certificate import empirical_certificate
+
+        g = default_gains()
+        z = info["zeta"] if controller == "hybrid" else np.ones(n_run)
+        certificate = empirical_certificate(
+            info["s"], z, info["w_mu"], g.k_reach, g.eps_radps2, g.phi_radps, DT_S, switching
+        )
     return {
         "t_s": np.arange(n_pre + n_steps) * DT_S,
         "x_wind": np.concatenate([pre_x, np.asarray(traj.x_wind)]),
@@ -199,8 +221,10 @@ def run_fly(
         "u_cmd_rad": np.concatenate(
             [np.broadcast_to(np.asarray(spin_entry_controls()), (n_pre, 3)), np.asarray(traj.u_cmd_rad)]
         ),
-        "s": np.concatenate([nan3, np.asarray(traj.info["s"])]),
-        "e": np.concatenate([nan3, np.asarray(traj.info["e"])]),
+        "s": np.concatenate([nan3, info["s"]]),
+        "e": np.concatenate([nan3, info["e"]]),
+        "hybrid": hybrid,
+        "certificate": certificate,
         "t_engage_s": t_engage,
         "metrics": metrics_to_dict(m),
         "spin": spin,
@@ -213,6 +237,34 @@ def spin_entry_controls() -> tuple[float, float, float]:
     from harv_jax.scenarios import SPIN_CONTROLS_RAD
 
     return SPIN_CONTROLS_RAD
+
+
+def plot_hybrid(t: np.ndarray, hy: dict, path: Path, t_engage_s: float) -> None:
+    """hybrid.png: zeta and fallback, and the learned and feedback commands per surface."""
+    import matplotlib.pyplot as plt
+
+    from harv_jax.dynamics import CONTROL_NAMES
+    from harv_jax.units import DEG_PER_RAD
+
+    fig, axes = plt.subplots(4, 1, figsize=(10, 8), sharex=True)
+    axes[0].plot(t, hy["zeta"], lw=0.9, label="zeta")
+    axes[0].plot(t, hy["fallback"], lw=0.9, ls="--", label="fallback (SMC-only)")
+    axes[0].set_ylabel("zeta / fallback")
+    axes[0].legend(loc="upper right", fontsize=8)
+    for j, n in enumerate(CONTROL_NAMES):
+        axes[j + 1].plot(t, hy["u_rl_rad"][:, j] * DEG_PER_RAD, lw=0.8, label=f"{n} u_RL")
+        axes[j + 1].plot(t, hy["zeta"] * hy["u_fb_rad"][:, j] * DEG_PER_RAD, lw=0.8, label=f"{n} zeta u_fb")
+        axes[j + 1].set_ylabel("deg")
+        axes[j + 1].legend(loc="upper right", fontsize=8)
+    axes[-1].set_xlabel("t [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        if t_engage_s > 0:
+            ax.axvline(t_engage_s, color="grey", ls=":", lw=0.8)
+    fig.suptitle("hybrid: authority factor and command split")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
 
 
 def write_outputs(out_dir: Path, res: dict, meta: dict) -> None:
@@ -228,7 +280,18 @@ def write_outputs(out_dir: Path, res: dict, meta: dict) -> None:
     s_names = ("s_alpha", "s_beta", "s_mu")
     e_names = ("e_alpha", "e_beta", "e_mu")
     names = ("t", *WIND_STATE_NAMES, *CONTROL_NAMES, *cmd_names, *s_names, *e_names)
-    table = np.column_stack([t, res["x_wind"], res["delta_rad"], res["u_cmd_rad"], res["s"], res["e"]])
+    cols_out = [t, res["x_wind"], res["delta_rad"], res["u_cmd_rad"], res["s"], res["e"]]
+    hy = res.get("hybrid")
+    if hy is not None:
+        names += (
+            "zeta",
+            "fallback",
+            *(f"{n}_rl" for n in CONTROL_NAMES),
+            *(f"{n}_fb" for n in CONTROL_NAMES),
+        )
+        cols_out += [hy["zeta"], hy["fallback"], hy["u_rl_rad"], hy["u_fb_rad"]]
+        plot_hybrid(t, hy, out_dir / "hybrid.png", res["t_engage_s"])
+    table = np.column_stack(cols_out)
     np.savetxt(
         out_dir / "trajectory.csv", table, delimiter=",", header=",".join(names), comments="", fmt="%.8g"
     )
@@ -265,6 +328,7 @@ def write_outputs(out_dir: Path, res: dict, meta: dict) -> None:
         "initial_state": res["x0"],
         "spin_check": res["spin"],
         "metrics": res["metrics"],
+        "certificate": res.get("certificate"),
     }
     (out_dir / "metrics.json").write_text(json.dumps(doc, indent=2) + "\n")
 
@@ -272,7 +336,15 @@ def write_outputs(out_dir: Path, res: dict, meta: dict) -> None:
 def register(app: typer.Typer) -> None:
     @app.command()
     def fly(
-        controller: str = typer.Option("smc", help="Controller: smc (rl and hybrid come later)."),
+        controller: str = typer.Option("smc", help="Controller: smc, rl (policy only) or hybrid."),
+        policy: str = typer.Option(
+            None,
+            help="rl/hybrid policy: a run folder, .npz, checkpoint[@seed], shipped:full (default) "
+            "or shipped:partial.",
+        ),
+        zeta: str = typer.Option(
+            "hysteresis", help="Hybrid zeta schedule: hysteresis, continuous, always, never."
+        ),
         scenario: str = typer.Option(
             "spin",
             help="spin (30 s pro-spin open loop, then the controller), random (one state from the "
@@ -289,16 +361,23 @@ def register(app: typer.Typer) -> None:
         switching: str = typer.Option("sat", help="SMC switching: sat (boundary layer) or sign (paper)."),
         spin_s: float = typer.Option(30.0, help="Spin scenario: seconds held in the spin before engagement."),
     ) -> None:
-        """Fly a controller closed loop: trajectory.csv, trajectory.png, sliding.png, metrics.json."""
+        """Fly a controller closed loop: trajectory.csv, trajectory.png, sliding.png, metrics.json (and
+        hybrid.png for the hybrid)."""
         from harv_jax.outdir import prepare_out_dir
 
         validate_options(controller, switching, target_alpha, duration, spin_s)
         if scenario not in SCENARIOS:
             load_state_file(Path(scenario))  # validate before creating the output directory
+        if controller != "smc":
+            from harv_jax.commands.mc import build_controller
+
+            build_controller(controller, policy, zeta)  # validate policy and zeta first
         out_dir = prepare_out_dir(out, force)
-        res = run_fly(scenario, target_alpha, duration, seed, switching, spin_s)
+        res = run_fly(scenario, target_alpha, duration, seed, switching, spin_s, controller, policy, zeta)
         meta = {
             "controller": controller,
+            "policy": (policy or "shipped:full") if controller != "smc" else None,
+            "zeta_schedule": zeta if controller == "hybrid" else None,
             "switching": switching,
             "scenario": scenario,
             "seed": seed,

@@ -33,22 +33,29 @@ def parse_controllers(text: str) -> list[str]:
     return names
 
 
-def build_controller(name: str, policy: str | None):
-    """Controller by name (the SMC now; RL and hybrid need a trained policy)."""
+def build_controller(name: str, policy: str | None, zeta: str = "hysteresis"):
+    """Controller by name: ``smc``; ``rl`` and ``hybrid`` fly the policy at ``policy``.
+
+    ``zeta`` is the hybrid's schedule (``harv_jax.control.hybrid.ZETA_SCHEDULES``).
+    """
     if name == "smc":
         from harv_jax.control.smc import make_smc
 
         return make_smc()
-    if name == "rl":
-        if not policy:
-            raise UsageError(
-                "controller 'rl' needs --policy PATH (a training run folder, .npz or checkpoint)"
-            )
-        from harv_jax.control.rl import make_rl_controller
-        from harv_jax.policy import load
+    if name in ("rl", "hybrid"):
+        from harv_jax.policy import resolve_policy
 
-        return make_rl_controller(load(policy).deterministic)
-    raise UsageError(f"controller {name!r} is not available yet (allowed now: smc, rl)")
+        act = resolve_policy(policy).deterministic
+        if name == "rl":
+            from harv_jax.control.rl import make_rl_controller
+
+            return make_rl_controller(act)
+        from harv_jax.control.hybrid import ZETA_SCHEDULES, HybridConfig, make_hybrid
+
+        if zeta not in ZETA_SCHEDULES:
+            raise UsageError(f"--zeta {zeta!r} is unknown; allowed: {', '.join(ZETA_SCHEDULES)}")
+        return make_hybrid(act, HybridConfig(schedule=zeta))
+    raise UsageError(f"unknown controller {name!r}; allowed: {', '.join(KNOWN_CONTROLLERS)}")
 
 
 def validate(runs: int, target_alpha: float, duration: float, chunk: int) -> None:
@@ -110,6 +117,7 @@ def run_monte_carlo(
     chunk: int = 250,
     record_every: int = 10,
     progress: bool = True,
+    zeta: str = "hysteresis",
 ) -> dict:
     """Run the Monte Carlo and write summary.json, bands_*.png, terminal_errors.png, runs.csv."""
     import jax
@@ -119,7 +127,7 @@ def run_monte_carlo(
     from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, summarize_controller
     from harv_jax.plotting import plot_mc_bands, plot_terminal_errors
 
-    ctrls = {name: build_controller(name, policy) for name in controllers}
+    ctrls = {name: build_controller(name, policy, zeta) for name in controllers}
     dt_s = 0.01
     n_steps = int(round(duration / dt_s))
     n_steps -= n_steps % record_every
@@ -127,7 +135,8 @@ def run_monte_carlo(
     inputs = sample_mc_inputs(jax.random.key(seed), runs, harv(), randomize=randomize)
     summary: dict = {
         "runs": runs, "target_alpha_rad": target_alpha, "duration_s": n_steps * dt_s, "seed": seed,
-        "randomize": randomize, "dt_s": dt_s, "devices": [str(d) for d in jax.local_devices()],
+        "randomize": randomize, "dt_s": dt_s, "policy": policy or "shipped:full", "zeta_schedule": zeta,
+        "devices": [str(d) for d in jax.local_devices()],
         "command": "harv-jax " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
         "controllers": {},
     }  # fmt: skip
@@ -137,7 +146,7 @@ def run_monte_carlo(
             typer.echo(f"[mc] {name}: {runs} runs x {n_steps} steps ...")
         out, wall = run_mc(ctrl, inputs, reference, n_steps, dt_s, record_every, chunk)
         outs[name] = out
-        summary["controllers"][name] = summarize_controller(out, wall)
+        summary["controllers"][name] = summarize_controller(out, wall, n_steps)
         if progress:
             s = summary["controllers"][name]
             typer.echo(
@@ -164,7 +173,14 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def mc(
         controller: str = typer.Option("smc", help="Controllers, comma-separated: smc, rl, hybrid."),
-        policy: str = typer.Option(None, help="Policy file for rl/hybrid."),
+        policy: str = typer.Option(
+            None,
+            help="rl/hybrid policy: run folder, .npz, checkpoint[@seed], shipped:full (default), "
+            "shipped:partial.",
+        ),
+        zeta: str = typer.Option(
+            "hysteresis", help="Hybrid zeta schedule: hysteresis, continuous, always, never."
+        ),
         runs: int = typer.Option(1000, help="Number of Monte Carlo runs."),
         target_alpha: float = typer.Option(0.349, help="Target angle of attack, rad."),
         duration: float = typer.Option(60.0, help="Run length, s."),
@@ -180,7 +196,9 @@ def register(app: typer.Typer) -> None:
         names = parse_controllers(controller)
         validate(runs, target_alpha, duration, chunk)
         for name in names:
-            build_controller(name, policy)  # fail fast, before creating the output directory
+            build_controller(name, policy, zeta)  # fail fast, before creating the output directory
         out_dir = prepare_out_dir(out, force)
-        run_monte_carlo(names, policy, runs, target_alpha, duration, seed, randomize, out_dir, chunk)
+        run_monte_carlo(
+            names, policy, runs, target_alpha, duration, seed, randomize, out_dir, chunk, zeta=zeta
+        )
         typer.echo(f"wrote {out_dir}/summary.json, bands_*.png, terminal_errors.png, runs.csv")

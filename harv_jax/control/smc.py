@@ -220,8 +220,14 @@ def smc_command(
     params: AircraftParams,
     gains: SMCGains,
     cfg: SMCConfig,
+    u_offset_rad: jnp.ndarray | None = None,
 ) -> tuple[jnp.ndarray, SMCTerms]:
     """The SMC law for a constant reference (y_ref_dot = y_ref_ddot = 0): unsaturated command.
+
+    With ``u_offset_rad`` (the hybrid's learned command u_RL) the law is designed against the
+    RL-compensated dynamics y_ddot = L_f^2 y + L_g L_f y (u_RL + u_fb) (paper Sec. V): it returns the
+    feedback term u_fb = (L_g L_f y)^-1 (nu - L_f^2 y - L_g L_f y u_RL), so that u_RL + u_fb is the SMC
+    command whenever the solve is exact (guard inactive).
 
     Args:
         x: wind-axis state [10].
@@ -230,6 +236,7 @@ def smc_command(
         params: aircraft of the controller model.
         gains: SMCGains.
         cfg: SMCConfig.
+        u_offset_rad: [3] command already applied by another law (default none).
 
     Returns:
         (u [3] rad, unclipped; SMCTerms).
@@ -267,8 +274,31 @@ def smc_command(
         b = b.at[MU_CHANNEL].set(w * b_mu + (1.0 - w) * (-gains.k_pw_ps * p_w - pw.lf_h[0]))
     else:
         w = jnp.ones_like(x[7])
+    if u_offset_rad is not None:
+        b = b - jnp.where(jnp.isfinite(a), a, 0.0) @ u_offset_rad
     u, solve = guarded_solve(a, b, gains.cond_max, gains.sigma_floor)
     return u, SMCTerms(e=e, e_dot=e_dot, s=s, w_mu=w, solve=solve)
+
+
+def update_integral(
+    integral_rad_s: jnp.ndarray,
+    terms: SMCTerms,
+    saturated: jnp.ndarray,
+    gains: SMCGains,
+    cfg: SMCConfig,
+    enabled: jnp.ndarray | bool = True,
+) -> jnp.ndarray:
+    """Anti-windup update of int e dt [3]: runs only inside the band, not while saturated, not for mu
+    in the near-vertical blend, and not when ``enabled`` is False (the hybrid with zeta = 0)."""
+    active = (jnp.abs(terms.e) < gains.int_band_rad) & enabled
+    if cfg.freeze_integral_when_saturated:
+        active = active & ~saturated
+    active = active.at[MU_CHANNEL].set(active[MU_CHANNEL] & (terms.w_mu >= 1.0))
+    return jnp.clip(
+        integral_rad_s + cfg.dt_s * jnp.where(active, terms.e, 0.0),
+        -gains.int_clip_rad_s,
+        gains.int_clip_rad_s,
+    )
 
 
 def make_smc(cfg: SMCConfig | None = None, gains: SMCGains | None = None) -> Controller:
@@ -310,15 +340,7 @@ def make_smc(cfg: SMCConfig | None = None, gains: SMCGains | None = None) -> Con
         u_raw = jnp.where(jnp.all(jnp.isfinite(u_raw)), u_raw, state.u_prev_rad)
         u = jnp.clip(u_raw, params.u_min_rad, params.u_max_rad)
         saturated = jnp.any(u != u_raw)
-        active = jnp.abs(terms.e) < gains_.int_band_rad
-        if cfg.freeze_integral_when_saturated:
-            active = active & ~saturated
-        active = active.at[MU_CHANNEL].set(active[MU_CHANNEL] & (terms.w_mu >= 1.0))
-        integral = jnp.clip(
-            integral + cfg.dt_s * jnp.where(active, terms.e, 0.0),
-            -gains_.int_clip_rad_s,
-            gains_.int_clip_rad_s,
-        )
+        integral = update_integral(integral, terms, saturated, gains_, cfg)
         new_state = state.replace(
             integral_rad_s=integral,
             reference_prev_rad=reference_rad.astype(state.reference_prev_rad.dtype),

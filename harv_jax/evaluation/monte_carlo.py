@@ -197,8 +197,13 @@ def _pct(a: np.ndarray, q: float) -> float | None:
     return float(np.percentile(a, q)) if a.size else None
 
 
-def summarize_controller(out: MCRunOutput, wall: dict[str, float]) -> dict[str, Any]:
-    """The per-controller block of ``summary.json`` (names relied on by users' scripts)."""
+def summarize_controller(
+    out: MCRunOutput, wall: dict[str, float], n_steps: int | None = None
+) -> dict[str, Any]:
+    """The per-controller block of ``summary.json`` (names relied on by users' scripts).
+
+    ``n_steps`` (steps per run) turns the hybrid's per-step flags into counts per run.
+    """
     m = out.metrics
     outcome = np.asarray(m.outcome)
     n = int(outcome.size)
@@ -219,7 +224,20 @@ def summarize_controller(out: MCRunOutput, wall: dict[str, float]) -> dict[str, 
             "within_2": float(np.mean(np.abs(term_deg[:, i]) <= 2.0)),
         }
     counts = {name: int((outcome == code).sum()) for code, name in enumerate(OUTCOME_NAMES)}
-    safety = out.info_means.get("safety_intervention")
+    info = out.info_means
+
+    def per_run(key: str) -> float | None:
+        """Mean over runs of the per-run count (n_steps given) or step fraction of a per-step flag."""
+        if key not in info:
+            return None
+        return float(np.mean(info[key]) * (n_steps if n_steps else 1))
+
+    hybrid = {
+        "zeta_active_fraction": float(np.mean(info["zeta"])) if "zeta" in info else None,
+        "zeta_switches_per_run": per_run("zeta_switched"),
+        "fallback_fraction": float(np.mean(info["fallback"])) if "fallback" in info else None,
+        "fallbacks_per_run": per_run("fallback_entered"),
+    }
     return {
         "recovery_rate": float(rec.mean()) if n else None,
         "recovery_time_s": {
@@ -236,7 +254,9 @@ def summarize_controller(out: MCRunOutput, wall: dict[str, float]) -> dict[str, 
         "chatter_index": {"mean": float(np.mean(np.sum(m.chatter_index_rad2, axis=-1))), "unit": "rad^2"},
         "saturation_fraction": float(np.mean(m.sat_position_fraction)),
         "rate_saturation_fraction": float(np.mean(m.sat_rate_fraction)),
-        "safety_interventions": float(np.sum(safety)) if safety is not None else 0.0,
+        "safety_interventions": per_run("intervened") or 0.0,
+        "safety_interventions_unit": "steps with an intervention per run" if n_steps else "step fraction",
+        "hybrid": hybrid,
         "outcomes": {
             "recovered": counts["RECOVERED"],
             "departed": counts["DEPARTED"] + counts["GROUND_HIT"],

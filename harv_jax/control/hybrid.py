@@ -1,0 +1,237 @@
+"""The hybrid controller u = u_RL + zeta u_fb (paper Secs. IV-C and V) with a safety filter and supervisor.
+
+One step, for the wind state x and the reference y_ref:
+
+1. supervisor: fallback (SMC-only) if x left the trusted box or the filter intervened too often
+   (``harv_jax.control.supervisor``);
+2. learned command: u_RL = action_to_command(policy(observation(x, y_ref))), capped to a fraction of
+   each deflection range (``safety.cap_authority``); u_RL = 0 in fallback;
+3. feedback term designed on the RL-compensated dynamics (``smc_command(..., u_offset_rad=u_RL)``):
+   u_fb = (L_g L_f y)^-1 (nu - L_f^2 y - L_g L_f y u_RL), nu the SMC's (reaching law included);
+4. zeta from the schedule (``harv_jax.control.scheduling``; 1 in fallback);
+5. u = u_RL + zeta u_fb, then the position/rate box of the safety filter (``safety.filter_command``).
+
+Identity (exact where the solve is unguarded): u_RL + zeta u_fb = (1 - zeta) u_RL + zeta u_SMC, so
+zeta = 1 is the SMC-only law for any policy and zeta = 0 the (filtered) RL-only law.
+
+The SMC's integral runs only while zeta > 0 (with zeta = 0 the learned law is in charge and the
+integral would wind up on its errors); its anti-windup saturation test is the SMC's (position limits of
+the unfiltered command), so that with zeta = 1 the integrator states of both controllers are equal.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Literal
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from harv_jax.aircraft.params import AircraftParams
+from harv_jax.control.base import Controller
+from harv_jax.control.safety import cap_authority, filter_command
+from harv_jax.control.scheduling import ZetaState, continuous_zeta, hysteresis_step, zeta_init
+from harv_jax.control.smc import SMCConfig, SMCGains, default_gains, smc_command, update_integral
+from harv_jax.control.supervisor import (
+    SupervisorGains,
+    SupervisorState,
+    default_supervisor_gains,
+    record_intervention,
+    supervise,
+    supervisor_init,
+)
+from harv_jax.env.recovery import action_to_command, observation
+
+ZetaSchedule = Literal["hysteresis", "continuous", "always", "never"]
+ZETA_SCHEDULES: tuple[str, ...] = ("hysteresis", "continuous", "always", "never")
+
+
+@struct.dataclass
+class HybridGains:
+    """Traced settings of the hybrid controller (sweep them without recompiling).
+
+    Attributes:
+        smc: the SMC gains of the feedback term.
+        e_on_rad: [3] outer tube radii: zeta -> 1 when any |e_i| exceeds its radius, rad.
+        e_off_rad: [3] inner tube radii: zeta -> 0 when all |e_i| are below theirs, rad.
+        zeta_min_dwell_s: minimum time between two hysteresis switches, s.
+        authority_frac: [3] cap of |u_RL| as a fraction of each channel's limits, in (0, 1].
+        supervisor: SupervisorGains.
+    """
+
+    smc: SMCGains
+    e_on_rad: jnp.ndarray
+    e_off_rad: jnp.ndarray
+    zeta_min_dwell_s: jnp.ndarray
+    authority_frac: jnp.ndarray
+    supervisor: SupervisorGains
+
+
+def default_hybrid_gains(dtype=None) -> HybridGains:
+    """Paper's e_on 0.05 rad; e_off 0.02 rad; 0.5 s dwell; no authority cap; default supervisor."""
+    dtype = jnp.result_type(float) if dtype is None else dtype
+    return HybridGains(
+        smc=default_gains(dtype),
+        e_on_rad=jnp.full((3,), 0.05, dtype),
+        e_off_rad=jnp.full((3,), 0.02, dtype),
+        zeta_min_dwell_s=jnp.asarray(0.5, dtype),
+        authority_frac=jnp.ones((3,), dtype),
+        supervisor=default_supervisor_gains(dtype),
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class HybridConfig:
+    """Static options (changing them recompiles).
+
+    Attributes:
+        schedule: zeta schedule: ``hysteresis`` (paper), ``continuous``, ``always`` (zeta = 1),
+            ``never`` (zeta = 0, the filtered RL-only law).
+        smc: SMCConfig of the feedback term.
+        supervisor: enable the fallback supervisor.
+        window_steps: length of the supervisor's intervention window, steps.
+    """
+
+    schedule: ZetaSchedule = "hysteresis"
+    smc: SMCConfig = SMCConfig()
+    supervisor: bool = True
+    window_steps: int = 100
+
+    def __post_init__(self) -> None:
+        if self.schedule not in ZETA_SCHEDULES:
+            raise ValueError(f"schedule={self.schedule!r}; allowed: {', '.join(ZETA_SCHEDULES)}")
+        if self.window_steps < 1:
+            raise ValueError(f"window_steps={self.window_steps} must be >= 1")
+
+
+@struct.dataclass
+class HybridState:
+    """Per-aircraft state of the hybrid controller.
+
+    Attributes:
+        params: aircraft of the controller model (and its limits).
+        integral_rad_s: [3] SMC integral of e.
+        u_prev_rad: [3] previous filtered command (the rate box is relative to it).
+        zeta: ZetaState of the hysteresis schedule.
+        supervisor: SupervisorState.
+        interventions: int32 [3] per-channel count of steps the filter changed the command.
+    """
+
+    params: AircraftParams
+    integral_rad_s: jnp.ndarray
+    u_prev_rad: jnp.ndarray
+    zeta: ZetaState
+    supervisor: SupervisorState
+    interventions: jnp.ndarray
+
+
+def make_hybrid(
+    act: Callable[[jax.Array], jax.Array],
+    cfg: HybridConfig | None = None,
+    gains: HybridGains | None = None,
+) -> Controller:
+    """Build the hybrid controller.
+
+    Args:
+        act: deterministic policy ``obs [11] -> action [3]`` in [-1, 1] (``policy.load(p).deterministic``).
+        cfg: static options (default ``HybridConfig()``).
+        gains: traced settings (default ``default_hybrid_gains()``).
+
+    Returns:
+        Controller whose ``info`` holds: zeta, zeta_switched, fallback, fallback_entered, fallback_reason,
+        u_rl_rad [3], u_fb_rad [3], u_unfiltered_rad [3], cap_active [3], limit_active [3], intervened, e,
+        e_dot, s [3], w_mu, saturated, integral_rad_s [3].
+    """
+    cfg = HybridConfig() if cfg is None else cfg
+    g = default_hybrid_gains() if gains is None else gains
+    dt_s = cfg.smc.dt_s
+
+    def init(params: AircraftParams) -> HybridState:
+        dtype = jnp.result_type(params.mass_slug)
+        z3 = jnp.zeros((3,), dtype)
+        return HybridState(
+            params=params,
+            integral_rad_s=z3,
+            u_prev_rad=z3,
+            zeta=zeta_init(dtype),
+            supervisor=supervisor_init(cfg.window_steps, dtype),
+            interventions=jnp.zeros((3,), jnp.int32),
+        )
+
+    def apply(state: HybridState, x_wind: jnp.ndarray, reference_rad: jnp.ndarray, key: jax.Array):
+        del key  # deterministic
+        params = state.params
+        sup = supervise(state.supervisor, x_wind, g.supervisor, dt_s) if cfg.supervisor else state.supervisor
+        fallback = sup.fallback
+
+        a = jnp.clip(act(observation(x_wind, reference_rad)), -1.0, 1.0)
+        u_rl_raw = action_to_command(a, params.u_min_rad, params.u_max_rad).astype(state.u_prev_rad.dtype)
+        u_rl, cap_active = cap_authority(u_rl_raw, params, g.authority_frac)
+        u_rl = jnp.where(fallback, 0.0, u_rl)
+
+        u_fb, terms = smc_command(
+            x_wind, reference_rad, state.integral_rad_s, params, g.smc, cfg.smc, u_offset_rad=u_rl
+        )
+        zstate, switched = hysteresis_step(
+            state.zeta, terms.e, g.e_on_rad, g.e_off_rad, g.zeta_min_dwell_s, dt_s
+        )
+        if cfg.schedule == "hysteresis":
+            zeta = zstate.on.astype(u_fb.dtype)
+        elif cfg.schedule == "continuous":
+            zeta = continuous_zeta(terms.e, g.e_on_rad, g.e_off_rad).astype(u_fb.dtype)
+        elif cfg.schedule == "always":
+            zeta = jnp.ones((), u_fb.dtype)
+        else:
+            zeta = jnp.zeros((), u_fb.dtype)
+        zeta = jnp.where(fallback, 1.0, zeta)
+
+        u_raw = u_rl + zeta * u_fb
+        u_raw = jnp.where(jnp.all(jnp.isfinite(u_raw)), u_raw, state.u_prev_rad)
+        u, limit_active = filter_command(u_raw, state.u_prev_rad, params, dt_s)
+        saturated = jnp.any(jnp.clip(u_raw, params.u_min_rad, params.u_max_rad) != u_raw)
+        integral = update_integral(state.integral_rad_s, terms, saturated, g.smc, cfg.smc, zeta > 0)
+
+        # interventions attributable to the learned command: its cap, or the box while it contributes
+        rl_active = ~fallback & (zeta < 1.0)
+        cap_counted = cap_active & ~fallback
+        limit_counted = limit_active & rl_active
+        chan = cap_counted | limit_counted
+        intervened = jnp.any(chan)
+        sup = record_intervention(sup, intervened)
+
+        new_state = state.replace(
+            integral_rad_s=integral,
+            u_prev_rad=u,
+            zeta=zstate,
+            supervisor=sup,
+            interventions=state.interventions + chan.astype(jnp.int32),
+        )
+        info = {
+            "zeta": zeta,
+            "zeta_switched": switched if cfg.schedule == "hysteresis" else jnp.asarray(False),
+            "fallback": fallback,
+            "fallback_entered": fallback & ~state.supervisor.fallback,
+            "fallback_reason": sup.reason,
+            "u_rl_rad": u_rl,
+            "u_fb_rad": u_fb,
+            "u_unfiltered_rad": u_raw,
+            "cap_active": cap_counted,
+            "limit_active": limit_active,
+            "intervened": intervened,
+            "e": terms.e,
+            "e_dot": terms.e_dot,
+            "s": terms.s,
+            "w_mu": terms.w_mu,
+            "saturated": saturated,
+            "integral_rad_s": integral,
+        }
+        return u, new_state, info
+
+    return Controller(init=init, apply=apply)
+
+
+def zero_policy_action(params: AircraftParams) -> jnp.ndarray:
+    """The normalized action [3] that commands zero deflection (inverse of ``action_to_command``)."""
+    return 2.0 * (0.0 - params.u_min_rad) / (params.u_max_rad - params.u_min_rad) - 1.0

@@ -1,0 +1,87 @@
+"""Schedules of the hybrid weight zeta in u = u_RL + zeta u_fb (paper Sec. V, tube-based switching).
+
+- ``hysteresis`` (the paper's tube): zeta jumps to 1 when any tracking error |e_i| exceeds ``e_on``
+  and back to 0 only when all are below ``e_off < e_on``; after a switch, zeta is held for at least
+  ``min_dwell_s`` (no Zeno behaviour even when noise crosses both thresholds every step).
+- ``continuous`` (the paper's suggested extension): zeta = smoothstep(max_i (|e_i| - e_off_i) /
+  (e_on_i - e_off_i)), 0 inside the inner tube, 1 outside the outer one, C^1 in between; no state.
+
+Tube radii may be scalars (the paper's) or per channel [3].
+
+Errors are the SMC's e = [alpha - alpha_d, beta - beta_d, wrap(mu - mu_d)] in rad.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+from flax import struct
+
+#: A time since the last switch long enough for any dwell: the first step may switch at once.
+NEVER_SWITCHED_S = 1.0e9
+
+
+@struct.dataclass
+class ZetaState:
+    """State of the hysteresis schedule (vmap it with the aircraft).
+
+    Attributes:
+        on: bool, zeta = 1.
+        time_since_switch_s: time since the last switch, s.
+        n_switches: int32, switches so far.
+    """
+
+    on: jnp.ndarray
+    time_since_switch_s: jnp.ndarray
+    n_switches: jnp.ndarray
+
+
+def zeta_init(dtype) -> ZetaState:
+    """Start with zeta = 0 and no dwell pending."""
+    return ZetaState(
+        on=jnp.asarray(False),
+        time_since_switch_s=jnp.asarray(NEVER_SWITCHED_S, dtype),
+        n_switches=jnp.asarray(0, jnp.int32),
+    )
+
+
+def hysteresis_step(
+    state: ZetaState,
+    e_rad: jnp.ndarray,
+    e_on_rad: jnp.ndarray,
+    e_off_rad: jnp.ndarray,
+    min_dwell_s: jnp.ndarray,
+    dt_s: float,
+) -> tuple[ZetaState, jnp.ndarray]:
+    """One step of the hysteresis tube.
+
+    Args:
+        state: ZetaState before this step.
+        e_rad: [3] tracking errors at this step.
+        e_on_rad, e_off_rad: outer and inner tube radii (e_off < e_on), rad: scalars or per channel [3].
+        min_dwell_s: minimum time between two switches, s.
+        dt_s: step, s.
+
+    Returns:
+        (new state whose ``on`` is zeta for this step, bool: a switch happened at this step).
+    """
+    err = jnp.abs(e_rad)
+    err = jnp.where(jnp.isfinite(err), err, jnp.inf)  # a non-finite error counts as outside the tube
+    want = jnp.where(state.on, jnp.all(err < e_off_rad), jnp.any(err > e_on_rad))
+    switch = want & (state.time_since_switch_s >= min_dwell_s - 0.5 * dt_s)  # half a step: float sums
+    new = ZetaState(
+        on=state.on ^ switch,
+        time_since_switch_s=jnp.where(switch, 0.0, state.time_since_switch_s + dt_s),
+        n_switches=state.n_switches + switch.astype(jnp.int32),
+    )
+    return new, switch
+
+
+def continuous_zeta(e_rad: jnp.ndarray, e_on_rad: jnp.ndarray, e_off_rad: jnp.ndarray) -> jnp.ndarray:
+    """zeta in [0, 1]: smoothstep of the largest |e_i| between e_off_i (0) and e_on_i (1); non-finite -> 1.
+
+    ``e_on_rad``, ``e_off_rad``: scalars or per channel [3].
+    """
+    err = jnp.abs(e_rad)
+    z = jnp.max(jnp.clip((err - e_off_rad) / jnp.maximum(e_on_rad - e_off_rad, 1e-9), 0.0, 1.0))
+    z = z * z * (3.0 - 2.0 * z)
+    return jnp.where(jnp.all(jnp.isfinite(err)), z, 1.0)

@@ -1,0 +1,69 @@
+"""`harv-jax compare`: files, one table row per scenario and controller, one-line errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+
+import numpy as np
+import pytest
+
+from harv_jax import cli
+from harv_jax.commands.compare import COLUMNS, omega_settling_time_s
+
+
+def _run(monkeypatch, capsys, *args):
+    monkeypatch.setattr(sys, "argv", ["harv-jax", "compare", *args])
+    code = 0
+    try:
+        cli.main()
+    except SystemExit as e:
+        code = e.code
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_omega_settling_time():
+    t = np.arange(5) * 0.1
+    x = np.zeros((5, 10))
+    x[:, 3] = [1.0, 0.5, 0.1, 0.3, 0.1]
+    assert omega_settling_time_s(t, x) == pytest.approx(0.4)
+    x[-1, 3] = 1.0
+    assert omega_settling_time_s(t, x) is None
+
+
+def test_compare_writes_tables_and_figures(monkeypatch, capsys, tmp_path):
+    out = tmp_path / "c"
+    code, _, err = _run(
+        monkeypatch, capsys, "--controller", "smc,hybrid", "--policy", "shipped:partial", "--duration", "0.5",
+        "--spin-s", "0.5", "--out", str(out),
+    )  # fmt: skip
+    assert code == 0, err
+    for f in ("spin_trajectories.png", "fixed_trajectories.png", "spin_hybrid.png", "compare_metrics.md"):
+        assert (out / f).stat().st_size > 0
+    rows = list(csv.DictReader((out / "compare_metrics.csv").open()))
+    assert [(r["scenario"], r["controller"]) for r in rows] == [
+        ("spin", "smc"), ("spin", "hybrid"), ("fixed", "smc"), ("fixed", "hybrid"),
+    ]  # fmt: skip
+    assert list(rows[0]) == list(COLUMNS)
+    assert rows[0]["zeta_active_fraction"] == "" and 0 <= float(rows[1]["zeta_active_fraction"]) <= 1
+    md = (out / "compare_metrics.md").read_text().splitlines()
+    assert len([ln for ln in md if ln.startswith("| ")]) == 1 + len(rows)
+    doc = json.loads((out / "compare.json").read_text())
+    assert doc["policy"] == "shipped:partial" and len(doc["rows"]) == 4
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--controller", "smc,pid"], "unknown controller 'pid'"),
+        (["--state", "nowhere.json"], "--state 'nowhere.json' does not exist"),
+        (["--duration", "0"], "--duration 0.0 must be in"),
+        (["--zeta", "x"], "--zeta 'x' is unknown"),
+    ],
+)
+def test_compare_bad_flags(monkeypatch, capsys, tmp_path, args, needle):
+    code, _, err = _run(monkeypatch, capsys, *args, "--out", str(tmp_path / "o"))
+    assert code == 2 and needle in err and err.count("\n") == 1
+    assert not (tmp_path / "o").exists()
