@@ -19,7 +19,15 @@ import jax.numpy as jnp
 
 from harv_jax.aircraft import harv
 from harv_jax.control import make_smc
-from harv_jax.control.hybrid import HybridConfig, default_hybrid_gains, make_hybrid
+from harv_jax.control.hybrid import (
+    DEFAULT_E_OFF_RAD,
+    DEFAULT_E_ON_RAD,
+    PAPER_E_OFF_RAD,
+    PAPER_E_ON_RAD,
+    HybridConfig,
+    default_hybrid_gains,
+    make_hybrid,
+)
 from harv_jax.control.rl import make_rl_controller
 from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, summarize_controller
 from harv_jax.policy import resolve_policy
@@ -27,10 +35,10 @@ from harv_jax.policy import resolve_policy
 #: (name, schedule, e_on [3] rad, e_off [3] rad). "paper": the paper's tube (0.05 rad on every channel);
 #: "tight": radii inside the recovery criterion (2, 1, 2 deg) so that RL drift within the tube passes it.
 CONFIGS = (
-    ("hysteresis-paper", "hysteresis", (0.05, 0.05, 0.05), (0.02, 0.02, 0.02)),
-    ("hysteresis-tight", "hysteresis", (0.03, 0.015, 0.03), (0.01, 0.005, 0.01)),
-    ("continuous-paper", "continuous", (0.05, 0.05, 0.05), (0.02, 0.02, 0.02)),
-    ("continuous-tight", "continuous", (0.03, 0.015, 0.03), (0.01, 0.005, 0.01)),
+    ("hysteresis-paper", "hysteresis", PAPER_E_ON_RAD, PAPER_E_OFF_RAD),
+    ("hysteresis-tight", "hysteresis", DEFAULT_E_ON_RAD, DEFAULT_E_OFF_RAD),
+    ("continuous-paper", "continuous", PAPER_E_ON_RAD, PAPER_E_OFF_RAD),
+    ("continuous-tight", "continuous", DEFAULT_E_ON_RAD, DEFAULT_E_OFF_RAD),
 )
 
 KEYS = ("recovery_rate", "outcomes", "terminal_error_deg", "control_tv", "chatter_index", "hybrid",

@@ -26,7 +26,7 @@ def _root() -> None:
 
 
 #: Sub-command modules under ``harv_jax.commands``, in help order.
-COMMAND_MODULES = ("simulate", "fly", "train", "mc", "compare", "report", "quickstart")
+COMMAND_MODULES = ("simulate", "fly", "train", "mc", "compare", "envelope", "report", "quickstart")
 
 for _name in COMMAND_MODULES:
     _full = f"harv_jax.commands.{_name}"

@@ -117,6 +117,7 @@ def run_compare(
     scen_file.write_text(json.dumps(state, indent=2) + "\n")
     scenarios = {"spin": "spin", "fixed": str(scen_file)}
     rows: list[dict] = []
+    certificates: dict[str, dict] = {}
     for scen, arg in scenarios.items():
         runs = {}
         t_engage = None
@@ -124,6 +125,8 @@ def run_compare(
             typer.echo(f"[compare] {scen}: {name} ...")
             res = run_fly(arg, target_alpha, duration, seed, "sat", spin_s, name, policy, zeta)
             rows.append(row_of(scen, name, res))
+            if res.get("certificate") is not None:
+                certificates[f"{scen}/{name}"] = res["certificate"]
             cols = {n: res["x_wind"][:, i] for i, n in enumerate(WIND_STATE_NAMES)}
             cols.update({n: res["delta_rad"][:, i] for i, n in enumerate(CONTROL_NAMES)})
             runs[name] = cols
@@ -144,7 +147,7 @@ def run_compare(
         "command": "harv-jax " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
         "controllers": controllers, "policy": policy or "shipped:full", "zeta_schedule": zeta,
         "target_alpha_rad": target_alpha, "duration_s": duration, "spin_s": spin_s, "seed": seed,
-        "dt_s": DT_S, "fixed_state": state, "rows": rows,
+        "dt_s": DT_S, "fixed_state": state, "rows": rows, "certificates": certificates,
     }  # fmt: skip
     (out_dir / "compare.json").write_text(json.dumps(doc, indent=2) + "\n")
     return rows
@@ -162,7 +165,7 @@ def register(app: typer.Typer) -> None:
             "shipped:partial.",
         ),
         zeta: str = typer.Option(
-            "hysteresis", help="Hybrid zeta schedule: hysteresis, continuous, always, never."
+            "continuous", help="Hybrid zeta schedule: continuous, hysteresis (the paper's), always, never."
         ),
         target_alpha: float = typer.Option(0.349, help="Target angle of attack, rad."),
         duration: float = typer.Option(60.0, help="Closed-loop time after engagement, s."),

@@ -142,7 +142,7 @@ def run_fly(
     spin_s: float = 30.0,
     controller: str = "smc",
     policy: str | None = None,
-    zeta: str = "hysteresis",
+    zeta: str = "continuous",
 ) -> dict:
     """Fly a controller (smc, rl, hybrid) from a scenario; returns host arrays and metrics (no files).
 
@@ -343,7 +343,7 @@ def register(app: typer.Typer) -> None:
             "or shipped:partial.",
         ),
         zeta: str = typer.Option(
-            "hysteresis", help="Hybrid zeta schedule: hysteresis, continuous, always, never."
+            "continuous", help="Hybrid zeta schedule: continuous, hysteresis (the paper's), always, never."
         ),
         scenario: str = typer.Option(
             "spin",

@@ -33,7 +33,7 @@ def parse_controllers(text: str) -> list[str]:
     return names
 
 
-def build_controller(name: str, policy: str | None, zeta: str = "hysteresis"):
+def build_controller(name: str, policy: str | None, zeta: str = "continuous"):
     """Controller by name: ``smc``; ``rl`` and ``hybrid`` fly the policy at ``policy``.
 
     ``zeta`` is the hybrid's schedule (``harv_jax.control.hybrid.ZETA_SCHEDULES``).
@@ -117,7 +117,7 @@ def run_monte_carlo(
     chunk: int = 250,
     record_every: int = 10,
     progress: bool = True,
-    zeta: str = "hysteresis",
+    zeta: str = "continuous",
 ) -> dict:
     """Run the Monte Carlo and write summary.json, bands_*.png, terminal_errors.png, runs.csv."""
     import jax
@@ -179,7 +179,7 @@ def register(app: typer.Typer) -> None:
             "shipped:partial.",
         ),
         zeta: str = typer.Option(
-            "hysteresis", help="Hybrid zeta schedule: hysteresis, continuous, always, never."
+            "continuous", help="Hybrid zeta schedule: continuous, hysteresis (the paper's), always, never."
         ),
         runs: int = typer.Option(1000, help="Number of Monte Carlo runs."),
         target_alpha: float = typer.Option(0.349, help="Target angle of attack, rad."),

@@ -1,7 +1,9 @@
 """`harv-jax quickstart`: the main job on shipped defaults.
 
-Until a trained policy ships, it flies the sliding-mode controller: the paper's spin scenario
-(30 s developed spin, then recovery) and a Monte Carlo from the paper's reset bounds, with figures.
+1. the spin comparison: RL-only vs SMC-only vs hybrid after a 30 s developed spin, and from a fixed upset
+   (``harv-jax compare``), with the shipped policy;
+2. a Monte Carlo of SMC, RL and hybrid from the paper's reset bounds (``harv-jax mc``);
+3. the report of both (``harv-jax report``): report.md and report.html.
 """
 
 from __future__ import annotations
@@ -18,34 +20,45 @@ def register(app: typer.Typer) -> None:
         out: Path = typer.Option(Path("runs/quickstart"), help="Output directory."),
         runs: int = typer.Option(1000, help="Monte Carlo runs."),
         seed: int = typer.Option(0, help="Seed of the Monte Carlo."),
+        policy: str = typer.Option(None, help="Policy (default: the shipped fully trained one, shipped:full)."),
+        zeta: str = typer.Option("continuous", help="Hybrid zeta schedule (continuous, hysteresis, ...)."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
     ) -> None:
-        """Spin-recovery flight and a Monte Carlo of the SMC, with figures (a few minutes on 2 CPU cores)."""
-        from harv_jax.commands.fly import DT_S, run_fly, write_outputs
-        from harv_jax.commands.mc import run_monte_carlo, validate
+        """Spin comparison and a Monte Carlo of SMC, RL and hybrid with the shipped policy, plus a report."""
+        from harv_jax.commands.compare import run_compare
+        from harv_jax.commands.mc import build_controller, run_monte_carlo, validate
         from harv_jax.outdir import prepare_out_dir
 
         validate(runs, 0.349, 60.0, 250)
+        names = ["smc", "rl", "hybrid"]
+        for name in names:
+            build_controller(name, policy, zeta)
         out_dir = prepare_out_dir(out, force)
         t0 = time.perf_counter()
-        typer.echo(
-            "[quickstart] 1/2 spin scenario: 30 s developed spin, then the SMC recovers (alpha_d 20 deg)"
-        )
-        res = run_fly("spin", 0.349, 60.0, seed, "sat", 30.0)
-        meta = {"controller": "smc", "switching": "sat", "scenario": "spin", "seed": seed, "duration_s": 60.0,
-                "dt_s": DT_S, "reference_rad": [0.349, 0.0, 0.0], "spin_s": 30.0}  # fmt: skip
-        (out_dir / "spin").mkdir()
-        write_outputs(out_dir / "spin", res, meta)
-        m = res["metrics"]
-        typer.echo(f"[quickstart]     outcome {m['outcome_name']}, recovery time {m['t_recover_s']} s")
-        typer.echo(f"[quickstart] 2/2 Monte Carlo: {runs} runs x 60 s from the paper's reset bounds")
+        typer.echo("[quickstart] 1/3 spin comparison: 30 s developed spin, then RL, SMC and hybrid recover")
+        (out_dir / "compare").mkdir()
+        rows = run_compare(names, policy, zeta, 0.349, 60.0, 30.0, None, seed, out_dir / "compare")
+        for r in rows:
+            if r["scenario"] == "spin":
+                typer.echo(f"[quickstart]     {r['controller']}: {r['outcome']}, recovery time {r['recovery_time_s']}")
+        typer.echo(f"[quickstart] 2/3 Monte Carlo: {runs} runs x 60 s from the paper's reset bounds")
         (out_dir / "mc").mkdir()
-        s = run_monte_carlo(["smc"], None, runs, 0.349, 60.0, seed, False, out_dir / "mc")
-        c = s["controllers"]["smc"]
-        a = c["terminal_error_deg"]["alpha"]
-        typer.echo(
-            f"[quickstart] done in {time.perf_counter() - t0:.0f} s: spin/trajectory.png, mc/bands_smc.png, "
-            f"mc/terminal_errors.png, mc/summary.json in {out_dir}\n"
-            f"[quickstart] SMC: recovery rate {c['recovery_rate']:.3f}, terminal alpha error mean "
-            f"{a['mean']:.3f} deg, {100 * a['within_0p5']:.1f}% within 0.5 deg"
-        )
+        s = run_monte_carlo(names, policy, runs, 0.349, 60.0, seed, False, out_dir / "mc", zeta=zeta)
+        typer.echo("[quickstart] 3/3 report")
+        report = _write_report(out_dir)
+        typer.echo(f"[quickstart] done in {time.perf_counter() - t0:.0f} s; results in {out_dir}" + report)
+        for name, c in s["controllers"].items():
+            a = c["terminal_error_deg"]["alpha"]
+            typer.echo(
+                f"[quickstart] {name}: recovery rate {c['recovery_rate']:.3f}, terminal alpha error "
+                f"{a['mean']:.3f} deg ({100 * a['within_0p5']:.1f}% within 0.5 deg), control TV "
+                f"{c['control_tv']['mean']:.2f} rad"
+            )
+
+
+def _write_report(out_dir: Path) -> str:
+    """Run ``harv-jax report`` on the quickstart folder; returns a note for the final message."""
+    from harv_jax.commands.report import build_report
+
+    paths = build_report(out_dir, out_dir)
+    return ": " + ", ".join(str(p) for p in paths)
