@@ -32,13 +32,16 @@ from harv_jax.control.rl import make_rl_controller
 from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, summarize_controller
 from harv_jax.policy import resolve_policy
 
-#: (name, schedule, e_on [3] rad, e_off [3] rad). "paper": the paper's tube (0.05 rad on every channel);
-#: "tight": radii inside the recovery criterion (2, 1, 2 deg) so that RL drift within the tube passes it.
+#: (name, schedule, e_on [3] rad, e_off [3] rad, zeta floor). "paper": the paper's tube (0.05 rad on every
+#: channel); "tight": radii inside the recovery criterion (2, 1, 2 deg) so that RL drift within the tube
+#: passes it; "floorX": zeta never below X (the paper's analysis assumes zeta > 0).
 CONFIGS = (
-    ("hysteresis-paper", "hysteresis", PAPER_E_ON_RAD, PAPER_E_OFF_RAD),
-    ("hysteresis-tight", "hysteresis", DEFAULT_E_ON_RAD, DEFAULT_E_OFF_RAD),
-    ("continuous-paper", "continuous", PAPER_E_ON_RAD, PAPER_E_OFF_RAD),
-    ("continuous-tight", "continuous", DEFAULT_E_ON_RAD, DEFAULT_E_OFF_RAD),
+    ("hysteresis-paper", "hysteresis", PAPER_E_ON_RAD, PAPER_E_OFF_RAD, 0.0),
+    ("hysteresis-tight", "hysteresis", DEFAULT_E_ON_RAD, DEFAULT_E_OFF_RAD, 0.0),
+    ("continuous-paper", "continuous", PAPER_E_ON_RAD, PAPER_E_OFF_RAD, 0.0),
+    ("continuous-tight", "continuous", DEFAULT_E_ON_RAD, DEFAULT_E_OFF_RAD, 0.0),
+    ("continuous-tight-floor0.2", "continuous", DEFAULT_E_ON_RAD, DEFAULT_E_OFF_RAD, 0.2),
+    ("continuous-tight-floor0.5", "continuous", DEFAULT_E_ON_RAD, DEFAULT_E_OFF_RAD, 0.5),
 )
 
 KEYS = ("recovery_rate", "outcomes", "terminal_error_deg", "control_tv", "chatter_index", "hybrid",
@@ -52,6 +55,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--duration", type=float, default=60.0)
     ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--only", default="", help="comma-separated config names (default: all, plus smc and rl)")
     args = ap.parse_args()
     if args.out.exists():
         raise SystemExit(f"{args.out} exists; remove it first")
@@ -59,12 +63,18 @@ def main() -> None:
     n_steps = int(round(args.duration / 0.01))
     ref = jnp.array([0.349, 0.0, 0.0])
     inputs = sample_mc_inputs(jax.random.key(args.seed), args.runs, harv(), randomize=False)
-    ctrls = {"smc": make_smc(), "rl": make_rl_controller(act)}
-    for name, sched, e_on, e_off in CONFIGS:
-        g = default_hybrid_gains().replace(e_on_rad=jnp.asarray(e_on), e_off_rad=jnp.asarray(e_off))
+    only = [c for c in args.only.split(",") if c]
+    ctrls = {} if only else {"smc": make_smc(), "rl": make_rl_controller(act)}
+    for name, sched, e_on, e_off, floor in CONFIGS:
+        if only and name not in only:
+            continue
+        g = default_hybrid_gains().replace(
+            e_on_rad=jnp.asarray(e_on), e_off_rad=jnp.asarray(e_off), zeta_floor=jnp.asarray(floor)
+        )
         ctrls[f"hybrid/{name}"] = make_hybrid(act, HybridConfig(schedule=sched), g)
     results = {"policy": args.policy, "runs": args.runs, "seed": args.seed, "duration_s": args.duration,
-               "configs": {n: {"schedule": s, "e_on_rad": on, "e_off_rad": off} for n, s, on, off in CONFIGS},
+               "configs": {n: {"schedule": s, "e_on_rad": on, "e_off_rad": off, "zeta_floor": f}
+                           for n, s, on, off, f in CONFIGS},
                "controllers": {}}  # fmt: skip
     t0 = time.perf_counter()
     for name, ctrl in ctrls.items():

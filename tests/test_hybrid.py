@@ -239,6 +239,8 @@ def test_vmaps_over_aircraft_with_one_trace():
     u, state, info = f(params, xs, state)
     u2, state, _ = f(params, xs, state)
     assert u.shape == (n, 3) and info["zeta"].shape == (n,)
+    floor = float(default_hybrid_gains().zeta_floor)
+    assert floor > 0 and bool(jnp.all((info["zeta"] >= floor - 1e-6) & (info["zeta"] <= 1.0)))
     # the batch equals a loop of single applies
     for i in range(n):
         u_i, _, _ = hy.apply(

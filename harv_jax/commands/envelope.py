@@ -146,6 +146,7 @@ def run_envelope_map(
     out_dir: Path,
     chunk: int = 250,
     progress: bool = True,
+    zeta: str = "continuous",
 ) -> dict:
     """Fly every controller from every grid point; write the maps, envelope.json, CSV and NPZ."""
     import jax
@@ -164,7 +165,7 @@ def run_envelope_map(
     from harv_jax.evaluation.metrics import OUTCOME_NAMES
     from harv_jax.plotting_maps import plot_outcome_maps, plot_time_maps
 
-    ctrls = {name: build_controller(name, policy) for name in controllers}
+    ctrls = {name: build_controller(name, policy, zeta) for name in controllers}
     n_steps = int(round(duration / DT_S))
     reference = jnp.array([target_alpha, 0.0, 0.0])
     inputs = envelope_inputs(jax.random.key(seed), grid, harv())
@@ -173,6 +174,7 @@ def run_envelope_map(
         "reference_rad": [target_alpha, 0.0, 0.0], "duration_s": n_steps * DT_S, "dt_s": DT_S, "seed": seed,
         "aircraft": "nominal", "devices": [str(d) for d in jax.local_devices()],
         "policy": (policy or "shipped:full") if {"rl", "hybrid"} & set(controllers) else None,
+        "zeta_schedule": zeta if "hybrid" in controllers else None,
         "command": "harv-jax " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
         "controllers": {},
     }  # fmt: skip
@@ -236,6 +238,9 @@ def register(app: typer.Typer) -> None:
             help="Off-grid initial states, e.g. 'V0=300,h0=20000' (default V0=800 ft/s, alpha0=0.436 rad, "
             "beta0=p0=q0=r0=mu0=gamma0=chi0=0, h0=25000 ft).",
         ),
+        zeta: str = typer.Option(
+            "continuous", help="Hybrid zeta schedule: continuous, hysteresis (the paper's), always, never."
+        ),
         seed: int = typer.Option(0, help="Seed of the controllers' keys (the grid itself is deterministic)."),
         chunk: int = typer.Option(250, help="Runs per compiled call (bounds memory)."),
         out: Path = typer.Option(Path("runs/envelope"), help="Output directory."),
@@ -249,9 +254,9 @@ def register(app: typer.Typer) -> None:
         g = build_grid(grid, n, fixed)
         validate(g.n_runs, target_alpha, duration, chunk)
         for name in names:
-            build_controller(name, policy)  # fail fast, before creating the output directory
+            build_controller(name, policy, zeta)  # fail fast, before creating the output directory
         out_dir = prepare_out_dir(out, force)
-        run_envelope_map(names, policy, g, target_alpha, duration, seed, out_dir, chunk)
+        run_envelope_map(names, policy, g, target_alpha, duration, seed, out_dir, chunk, zeta=zeta)
         typer.echo(
             f"wrote {out_dir}/envelope_recovery.png, envelope_time.png, envelope.json, envelope_grid.csv, "
             "envelope_grid.npz"
