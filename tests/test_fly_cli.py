@@ -160,4 +160,5 @@ def test_fly_hybrid_with_shipped_partial_policy(monkeypatch, capsys, tmp_path):
     z = data[:, header.index("zeta")]
     assert np.all((z >= 0) & (z <= 1))
     assert doc["policy"] == "shipped:partial" and doc["zeta_schedule"] == "continuous"
-    assert set(doc["certificate"]) == {"alpha", "beta", "mu"}
+    assert set(doc["certificate"]) == {"all_steps", "unsaturated_steps"}
+    assert set(doc["certificate"]["all_steps"]) == {"alpha", "beta", "mu"}

@@ -24,7 +24,7 @@ from harv_jax.control.supervisor import (
     supervisor_init,
 )
 from harv_jax.evaluation import closed_loop
-from harv_jax.evaluation.certificate import empirical_certificate
+from harv_jax.evaluation.certificate import empirical_certificate, unsaturated_steps
 
 FAST_COMPILE = {"xla_backend_optimization_level": 0}
 DT = 0.01
@@ -264,6 +264,19 @@ def test_certificate_recovers_an_injected_disturbance():
     for i, name in enumerate(("alpha", "beta", "mu")):
         assert cert[name]["delta_max"] == pytest.approx(d_true[i], rel=1e-3)
     assert cert["alpha"]["holds"] and cert["beta"]["holds"] and not cert["mu"]["holds"]
+    # excluded samples (valid = False) do not count
+    half = np.arange(n) < n // 2
+    cert_h = empirical_certificate(s, np.ones(n), np.ones(n), k, eps, phi, dt, valid=half)
+    assert cert_h["alpha"]["n_samples"] == n // 2
     # zeta = 0 samples are excluded
     cert0 = empirical_certificate(s, np.zeros(n), np.ones(n), k, eps, phi, dt)
     assert cert0["alpha"]["n_samples"] == 0 and not cert0["alpha"]["holds"]
+
+
+def test_unsaturated_steps_flags_position_and_rate_limits():
+    u_min, u_max, step = np.array([-1.0, -1, -1]), np.array([1.0, 1, 1]), np.array([0.1, 0.1, 0.1])
+    d = np.zeros((5, 3))
+    d[1, 0] = 1.0  # at a position limit (and moved 1.0 > 0.1 from step 0 to 1: rate limited on step 0)
+    d[3, 2] = 0.05  # a small move: free
+    free = unsaturated_steps(d, u_min, u_max, step)
+    np.testing.assert_array_equal(free, [False, False, True, True, True])

@@ -207,13 +207,19 @@ def run_fly(
     certificate = None
     if controller != "rl":
         from harv_jax.control import default_gains
-        from harv_jax.evaluation.certificate import empirical_certificate
+        from harv_jax.evaluation.certificate import empirical_certificate, unsaturated_steps
 
         g = default_gains()
         z = info["zeta"] if controller == "hybrid" else np.ones(n_run)
-        certificate = empirical_certificate(
-            info["s"], z, info["w_mu"], g.k_reach, g.eps_radps2, g.phi_radps, DT_S, switching
-        )
+        args = (info["s"], z, info["w_mu"], g.k_reach, g.eps_radps2, g.phi_radps, DT_S, switching)
+        free = unsaturated_steps(
+            np.asarray(traj.delta_rad), np.asarray(params.u_min_rad), np.asarray(params.u_max_rad),
+            np.asarray(params.u_rate_max_radps) * DT_S,
+        )  # fmt: skip
+        certificate = {
+            "all_steps": empirical_certificate(*args),
+            "unsaturated_steps": empirical_certificate(*args, valid=free),
+        }
     return {
         "t_s": np.arange(n_pre + n_steps) * DT_S,
         "x_wind": np.concatenate([pre_x, np.asarray(traj.x_wind)]),

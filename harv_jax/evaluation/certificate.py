@@ -42,6 +42,7 @@ def empirical_certificate(
     phi_radps: np.ndarray,
     dt_s: float,
     switching: str = "sat",
+    valid: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """Estimate delta_bar + d_bar per channel from sampled sliding variables.
 
@@ -52,6 +53,7 @@ def empirical_certificate(
         k_reach, eps_radps2, phi_radps: [3] SMC gains.
         dt_s: sample step, s.
         switching: ``"sat"`` or ``"sign"``.
+        valid: optional bool [..., T]: samples to use (e.g. the actuators unsaturated over the step).
 
     Returns:
         dict per channel name: n_samples, delta_max, delta_p99 (rad/s^2), zeta_eps (eps with zeta = 1),
@@ -69,6 +71,8 @@ def empirical_certificate(
     z0 = zeta[..., :-1, None]
     delta = s_dot + z0 * (k_reach * np.sqrt(np.abs(s0)) + eps) * switching_term(s0, phi, switching)
     engaged = (zeta[..., :-1] >= 1.0) & (zeta[..., 1:] >= 1.0)
+    if valid is not None:
+        engaged &= np.asarray(valid, bool)[..., :-1]
     mu_ok = (w_mu[..., :-1] >= 1.0) & (w_mu[..., 1:] >= 1.0)
     out: dict[str, Any] = {}
     for i, name in enumerate(CHANNELS):
@@ -90,3 +94,15 @@ def empirical_certificate(
             "reaching_fraction": float(reach.mean()) if reach.size else None,
         }
     return out
+
+
+def unsaturated_steps(
+    delta_rad: np.ndarray, u_min: np.ndarray, u_max: np.ndarray, rate_step: np.ndarray
+) -> np.ndarray:
+    """bool [..., T]: no surface at a position limit and none moving at its rate limit over step k."""
+    tol = 1e-6
+    d = np.asarray(delta_rad)
+    at_pos = (d <= u_min + tol) | (d >= u_max - tol)
+    dd = np.abs(np.diff(d, axis=-2, append=d[..., -1:, :]))
+    at_rate = dd >= rate_step - tol
+    return ~np.any(at_pos | at_rate, axis=-1)
