@@ -209,6 +209,7 @@ def summarize_controller(
     n = int(outcome.size)
     rec = np.asarray(m.recovered)
     t_rec = np.asarray(m.t_recover_s)[rec]
+    t_alpha = np.asarray(m.t_recover_alpha_s, dtype=float)
     term_deg = np.degrees(np.asarray(out.terminal_error_rad))
     term = {}
     for i, name in enumerate(("alpha", "beta", "mu")):
@@ -244,6 +245,11 @@ def summarize_controller(
             "mean": float(t_rec.mean()) if t_rec.size else None,
             "p50": _pct(t_rec, 50),
             "p95": _pct(t_rec, 95),
+        },
+        "alpha_recovery_time_s": {  # |e_alpha| < 2 deg and ||omega|| < 0.17 rad/s from then on
+            "fraction": float(np.mean(np.isfinite(t_alpha))),
+            "p50": _pct(t_alpha[np.isfinite(t_alpha)], 50),
+            "p95": _pct(t_alpha[np.isfinite(t_alpha)], 95),
         },
         "terminal_error_deg": term,
         "altitude_loss_ft": {

@@ -1,0 +1,86 @@
+"""RL-only and hybrid Monte Carlo of every seed of the H100 training runs (mean +- std over seeds).
+
+    python experiments/seed_eval.py --runs 256 --out experiments/results/seed_eval.json
+
+Policies: experiments/runs/gpu-h100/{paper-partial,paper-full}/policy/policy_seed{0,1,2}.npz. Same 256 initial
+states (paper reset bounds, seed 0, nominal aircraft, alpha_d 0.349 rad, 60 s) for every policy; the hybrid is
+the default one (continuous zeta, tight tube, zeta floor 0.2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from harv_jax.aircraft import harv
+from harv_jax.control.hybrid import HybridConfig, make_hybrid
+from harv_jax.control.rl import make_rl_controller
+from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, summarize_controller
+from harv_jax.policy import load
+
+RUNS_DIR = Path(__file__).resolve().parent / "runs" / "gpu-h100"
+METRICS = {
+    "recovery_rate": ("recovery_rate",),
+    "alpha_err_deg": ("terminal_error_deg", "alpha", "mean"),
+    "beta_err_deg": ("terminal_error_deg", "beta", "mean"),
+    "mu_err_deg": ("terminal_error_deg", "mu", "mean"),
+    "alpha_within_2": ("terminal_error_deg", "alpha", "within_2"),
+    "control_tv_rad": ("control_tv", "mean"),
+    "chatter_rad2": ("chatter_index", "mean"),
+    "t_recover_p50_s": ("recovery_time_s", "p50"),
+}
+
+
+def pick(d: dict, path: tuple[str, ...]):
+    for k in path:
+        d = d[k]
+    return d
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=256)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", type=Path, required=True)
+    args = ap.parse_args()
+    if args.out.exists():
+        raise SystemExit(f"{args.out} exists; remove it first")
+    inputs = sample_mc_inputs(jax.random.key(args.seed), args.runs, harv(), randomize=False)
+    ref = jnp.array([0.349, 0.0, 0.0])
+    res: dict = {"runs": args.runs, "seed": args.seed, "policies": {}, "over_seeds": {}}
+    for preset in ("paper-partial", "paper-full"):
+        for s in range(3):
+            act = load(RUNS_DIR / preset / "policy" / f"policy_seed{s}.npz").deterministic
+            for name, ctrl in (
+                ("rl", make_rl_controller(act)),
+                ("hybrid", make_hybrid(act, HybridConfig("continuous"))),
+            ):
+                out, wall = run_mc(ctrl, inputs, ref, 6000, 0.01, 10, 256)
+                summ = summarize_controller(out, wall, 6000)
+                row = {k: pick(summ, p) for k, p in METRICS.items()}
+                res["policies"][f"{preset}/seed{s}/{name}"] = row
+                print(
+                    preset,
+                    s,
+                    name,
+                    {k: (round(v, 4) if isinstance(v, float) else v) for k, v in row.items()},
+                    flush=True,
+                )
+        for name in ("rl", "hybrid"):
+            agg = {}
+            for k in METRICS:
+                v = [res["policies"][f"{preset}/seed{s}/{name}"][k] for s in range(3)]
+                v = np.array([np.nan if x is None else x for x in v], float)
+                agg[k] = {"mean": float(np.nanmean(v)) if np.isfinite(v).any() else None,
+                          "std": float(np.nanstd(v)) if np.isfinite(v).any() else None}  # fmt: skip
+            res["over_seeds"][f"{preset}/{name}"] = agg
+    args.out.write_text(json.dumps(res, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
