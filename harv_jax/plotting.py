@@ -80,6 +80,25 @@ def plot_time_histories(
     return path
 
 
+#: Percentiles of the Monte Carlo bands.
+BAND_PERCENTILES = (5, 25, 50, 75, 95)
+
+
+def band_percentiles(history_rad: np.ndarray) -> np.ndarray:
+    """[5, T, 3] percentiles (BAND_PERCENTILES) over runs of [N, T, 3] alpha, beta, mu, in degrees."""
+    return np.nanpercentile(np.degrees(history_rad), BAND_PERCENTILES, axis=0)
+
+
+def write_bands_csv(t_s: np.ndarray, history_rad: np.ndarray, path: str | Path) -> Path:
+    """bands_<controller>.csv: t and the BAND_PERCENTILES of alpha, beta, mu (deg) per sample time."""
+    pct = band_percentiles(history_rad)
+    names = [f"{y}_p{q}_deg" for y in ("alpha", "beta", "mu") for q in BAND_PERCENTILES]
+    cols = [pct[j, :, i] for i in range(3) for j in range(len(BAND_PERCENTILES))]
+    np.savetxt(path, np.column_stack([t_s, *cols]), delimiter=",", header=",".join(["t_s", *names]),
+               comments="", fmt="%.6g")  # fmt: skip
+    return Path(path)
+
+
 def plot_mc_bands(
     t_s: np.ndarray, history_rad: np.ndarray, reference_rad: np.ndarray, path: str | Path, title: str = ""
 ) -> Path:
@@ -94,9 +113,9 @@ def plot_mc_bands(
     """
     fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
     names = ("alpha", "beta", "mu")
+    pct = band_percentiles(history_rad)
     for i, (ax, name) in enumerate(zip(axes, names, strict=True)):
-        y = np.degrees(history_rad[:, :, i])
-        p5, p25, p50, p75, p95 = np.nanpercentile(y, [5, 25, 50, 75, 95], axis=0)
+        p5, p25, p50, p75, p95 = pct[:, :, i]
         ax.fill_between(t_s, p5, p95, alpha=0.25, color="C0", lw=0, label="5-95%")
         ax.fill_between(t_s, p25, p75, alpha=0.45, color="C0", lw=0, label="25-75%")
         ax.plot(t_s, p50, color="C0", lw=1.2, label="median")

@@ -127,9 +127,20 @@ def test_bad_flags_one_line_error(tmp_path, args, fragment):
 
 def test_cli_writes_outputs_and_refuses_existing_dir(tmp_path):
     out = tmp_path / "mc"
-    args = ["mc", "--runs", "8", "--duration", "3", "--chunk", "8", "--out", str(out)]
+    args = ["mc", "--runs", "8", "--duration", "3", "--chunk", "8", "--out", str(out), "--save-trajectories"]
     r = CliRunner().invoke(app, args, standalone_mode=False)
     assert r.exception is None, r.output
+    # the bands are the numpy percentiles of the saved trajectories
+    tr = np.load(out / "trajectories_smc.npz", allow_pickle=False)
+    bands = np.loadtxt(out / "bands_smc.csv", delimiter=",", skiprows=1)
+    np.testing.assert_allclose(bands[:, 0], tr["t_s"], atol=1e-9)
+    deg = np.degrees(tr["alpha_beta_mu_rad"])
+    assert deg.shape[0] == 8
+    for i in range(3):
+        for j, q in enumerate((5, 25, 50, 75, 95)):
+            np.testing.assert_allclose(
+                bands[:, 1 + 5 * i + j], np.percentile(deg[:, :, i], q, axis=0), rtol=1e-5, atol=1e-5
+            )
     s = json.loads((out / "summary.json").read_text())
     assert s["runs"] == 8 and sum(s["controllers"]["smc"]["outcomes"].values()) == 8
     for f in ("bands_smc.png", "terminal_errors.png", "runs.csv"):

@@ -118,14 +118,16 @@ def run_monte_carlo(
     record_every: int = 10,
     progress: bool = True,
     zeta: str = "continuous",
+    save_trajectories: bool = False,
 ) -> dict:
-    """Run the Monte Carlo and write summary.json, bands_*.png, terminal_errors.png, runs.csv."""
+    """Run the Monte Carlo and write summary.json, bands_*.png/.csv, terminal_errors.png, runs.csv (and
+    trajectories_*.npz: t_s [T], alpha_beta_mu_rad [N, T, 3] every ``record_every`` steps, if asked)."""
     import jax
     import jax.numpy as jnp
 
     from harv_jax.aircraft import harv
     from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, summarize_controller
-    from harv_jax.plotting import plot_mc_bands, plot_terminal_errors
+    from harv_jax.plotting import plot_mc_bands, plot_terminal_errors, write_bands_csv
 
     ctrls = {name: build_controller(name, policy, zeta) for name in controllers}
     dt_s = 0.01
@@ -154,6 +156,11 @@ def run_monte_carlo(
                 f"compile {wall['compile']:.1f} s, run {wall['run']:.1f} s"
             )
         t_rec = np.arange(out.history.shape[1]) * record_every * dt_s
+        write_bands_csv(t_rec, out.history, out_dir / f"bands_{name}.csv")
+        if save_trajectories:
+            np.savez_compressed(
+                out_dir / f"trajectories_{name}.npz", t_s=t_rec, alpha_beta_mu_rad=out.history
+            )
         plot_mc_bands(
             t_rec,
             out.history,
@@ -189,6 +196,9 @@ def register(app: typer.Typer) -> None:
         chunk: int = typer.Option(250, help="Runs per compiled call (bounds memory)."),
         out: Path = typer.Option(Path("runs/mc"), help="Output directory."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
+        save_trajectories: bool = typer.Option(
+            False, help="Also write trajectories_<controller>.npz (alpha, beta, mu of every run every 0.1 s)."
+        ),
     ) -> None:
         """Monte Carlo: same sampled aircraft/initial states for every controller; summary + figures."""
         from harv_jax.outdir import prepare_out_dir
@@ -199,6 +209,7 @@ def register(app: typer.Typer) -> None:
             build_controller(name, policy, zeta)  # fail fast, before creating the output directory
         out_dir = prepare_out_dir(out, force)
         run_monte_carlo(
-            names, policy, runs, target_alpha, duration, seed, randomize, out_dir, chunk, zeta=zeta
-        )
-        typer.echo(f"wrote {out_dir}/summary.json, bands_*.png, terminal_errors.png, runs.csv")
+            names, policy, runs, target_alpha, duration, seed, randomize, out_dir, chunk, zeta=zeta,
+            save_trajectories=save_trajectories,
+        )  # fmt: skip
+        typer.echo(f"wrote {out_dir}/summary.json, bands_*.png/.csv, terminal_errors.png, runs.csv")
