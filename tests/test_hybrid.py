@@ -45,16 +45,21 @@ def _linear_policy(seed: int = 0):
 
 
 @functools.partial(jax.jit, static_argnums=(0, 1), compiler_options=FAST_COMPILE)
-def _fly(ctrl, n_steps, params, x0):
-    return closed_loop(ctrl, params, x0, REF, jax.random.key(0), n_steps)
+def _fly(ctrl, n_steps, params, x0, delta0=None):
+    return closed_loop(ctrl, params, x0, REF, jax.random.key(0), n_steps, delta0_rad=delta0)
+
+
+#: The pro-spin deflections (de, da, dr), rad: a start far from zero deflection.
+SPIN_DELTA0 = jnp.array([-0.436, 0.436, 0.524])
 
 
 def test_zero_policy_with_zeta_one_equals_smc():
     params = _nominal()
     za = zero_policy_action(params)
     hy = make_hybrid(lambda obs: za, HybridConfig(schedule="always", supervisor=False))
-    r_h = _fly(hy, 600, params, X0)
-    r_s = _fly(make_smc(), 600, params, X0)
+    # from the pro-spin deflections: the filter's rate box starts at the actual deflections
+    r_h = _fly(hy, 600, params, X0, SPIN_DELTA0)
+    r_s = _fly(make_smc(), 600, params, X0, SPIN_DELTA0)
     np.testing.assert_allclose(r_h.traj.delta_rad, r_s.traj.delta_rad, atol=1e-5)
     np.testing.assert_allclose(r_h.traj.x_wind[:, 1:9], r_s.traj.x_wind[:, 1:9], atol=1e-5)
     np.testing.assert_allclose(r_h.traj.x_wind[:, 0], r_s.traj.x_wind[:, 0], rtol=1e-5)
@@ -85,8 +90,8 @@ def test_zeta_zero_equals_filtered_rl_only():
     params = _nominal()
     pol = _linear_policy(2)
     hy = make_hybrid(pol, HybridConfig(schedule="never", supervisor=False))
-    r_h = _fly(hy, 600, params, X0)
-    r_r = _fly(make_rl_controller(pol), 600, params, X0)
+    r_h = _fly(hy, 600, params, X0, SPIN_DELTA0)
+    r_r = _fly(make_rl_controller(pol), 600, params, X0, SPIN_DELTA0)
     # the filter's box is the plant's own position/rate limits: the deflections are identical
     np.testing.assert_allclose(r_h.traj.delta_rad, r_r.traj.delta_rad, atol=1e-6)
     np.testing.assert_allclose(r_h.traj.x_wind[:, 1:9], r_r.traj.x_wind[:, 1:9], atol=1e-5)

@@ -13,7 +13,8 @@ state [10] (V ft/s, alpha, beta rad, p, q, r rad/s, mu, gamma, chi rad, h ft); `
 ``u_rad`` is the deflection command [de, da, dr] in rad; position and rate limits are applied by
 the plant's actuator model (``harv_jax.dynamics.actuator_step``). ``info`` is a flat dict of arrays
 of fixed shapes (per-step diagnostics, e.g. sliding variables); its structure must not depend on
-values so that it can be stacked by ``lax.scan``.
+values so that it can be stacked by ``lax.scan``. A controller state with a field ``u_prev_rad`` (its
+last command) is started at the plant's initial deflections by ``harv_jax.evaluation.closed_loop``.
 """
 
 from __future__ import annotations

@@ -95,7 +95,8 @@ def closed_loop(
         dt_s: plant step, s (must equal the controller's own step, e.g. ``SMCConfig.dt_s``).
         delta0_rad: [3] initial deflections (default 0; e.g. the pro-spin controls).
         record_every: keep every k-th sample (static; n_steps must be a multiple of it).
-        ctrl_state: initial controller state (default ``controller.init(params)``).
+        ctrl_state: initial controller state (default ``controller.init(params)``, with its ``u_prev_rad``
+            set to ``delta0_rad`` if it has one).
 
     Returns:
         ClosedLoopResult.
@@ -106,6 +107,10 @@ def closed_loop(
     dtype = body0.uvw_fps.dtype
     delta0 = jnp.zeros((3,), dtype=dtype) if delta0_rad is None else jnp.asarray(delta0_rad, dtype=dtype)
     cstate0 = controller.init(params) if ctrl_state is None else ctrl_state
+    if ctrl_state is None and hasattr(cstate0, "u_prev_rad"):
+        # the controller's memory of its last command starts at the actual deflections (the hybrid's
+        # rate box is relative to it; the SMC holds it if a command is non-finite)
+        cstate0 = cstate0.replace(u_prev_rad=delta0.astype(cstate0.u_prev_rad.dtype))
     reference_rad = jnp.asarray(reference_rad, dtype=dtype)
 
     def step(carry, key_k):
