@@ -4,24 +4,16 @@ from __future__ import annotations
 
 import csv
 import json
-import sys
 
 import numpy as np
 import pytest
+from cli_util import cli_run
 
-from harv_jax import cli
 from harv_jax.commands.compare import COLUMNS, omega_settling_time_s
 
 
 def _run(monkeypatch, capsys, *args):
-    monkeypatch.setattr(sys, "argv", ["harv-jax", "compare", *args])
-    code = 0
-    try:
-        cli.main()
-    except SystemExit as e:
-        code = e.code
-    out = capsys.readouterr()
-    return code, out.out, out.err
+    return cli_run(monkeypatch, capsys, "compare", *args)
 
 
 def test_omega_settling_time():

@@ -4,15 +4,13 @@ from __future__ import annotations
 
 import csv
 import json
-import os
-import sys
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from cli_util import cli_run
 
-from harv_jax import cli
 from harv_jax.aircraft import harv
 from harv_jax.control.smc import make_smc
 from harv_jax.evaluation.closed_loop import closed_loop, score
@@ -120,16 +118,7 @@ def test_map_point_equals_single_closed_loop_run(env3x3, iy, ix):
 
 
 def _run(monkeypatch, capsys, *args):
-    """Run ``harv-jax envelope ARGS`` through the console entry point; (exit code, stdout, stderr)."""
-    monkeypatch.setenv("XLA_FLAGS", os.environ.get("XLA_FLAGS", ""))  # main() edits it; restored after
-    monkeypatch.setattr(sys, "argv", ["harv-jax", "envelope", *args])
-    code = 0
-    try:
-        cli.main()
-    except SystemExit as e:
-        code = e.code
-    out = capsys.readouterr()
-    return code, out.out, out.err
+    return cli_run(monkeypatch, capsys, "envelope", *args)
 
 
 @pytest.mark.parametrize(

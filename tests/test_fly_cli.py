@@ -3,27 +3,18 @@
 from __future__ import annotations
 
 import json
-import sys
 
 import numpy as np
 import pytest
+from cli_util import cli_run
 
-from harv_jax import cli
 from harv_jax.evaluation import OUTCOME_NAMES
 
 DURATION = "0.5"  # s: the flights only exercise the command; the 60 s results are in experiments/
 
 
 def _run(monkeypatch, capsys, *args):
-    """Run ``harv-jax fly ARGS`` in-process; returns (exit code, stdout, stderr)."""
-    monkeypatch.setattr(sys, "argv", ["harv-jax", "fly", *args])
-    code = 0
-    try:
-        cli.main()
-    except SystemExit as e:
-        code = e.code
-    out = capsys.readouterr()
-    return code, out.out, out.err
+    return cli_run(monkeypatch, capsys, "fly", *args)
 
 
 @pytest.mark.parametrize(

@@ -4,15 +4,13 @@ from __future__ import annotations
 
 import base64
 import json
-import os
 import re
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_util import cli_run
 
-from harv_jax import cli
 from harv_jax.commands.report import markdown_to_html
 
 MC_COMMAND = "harv-jax mc --controller smc,hybrid --runs 1000 --seed 7 --out runs/mc"
@@ -105,16 +103,7 @@ def make_mc_dir(d: Path) -> dict[str, bytes]:
 
 
 def _run(monkeypatch, capsys, *args):
-    """``harv-jax report ARGS`` through the console entry point; (exit code, stdout, stderr)."""
-    monkeypatch.setenv("XLA_FLAGS", os.environ.get("XLA_FLAGS", ""))  # main() edits it; restored after
-    monkeypatch.setattr(sys, "argv", ["harv-jax", "report", *map(str, args)])
-    code = 0
-    try:
-        cli.main()
-    except SystemExit as e:
-        code = e.code
-    out = capsys.readouterr()
-    return code, out.out, out.err
+    return cli_run(monkeypatch, capsys, "report", *args)
 
 
 def _md_table_rows(md: str, header_start: str) -> dict[str, list[str]]:

@@ -16,10 +16,11 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from harv_jax.commands.options import policy_option, zeta_option
 from harv_jax.errors import UsageError
 
-#: Fixed upset state of the second scenario (wind axes; ft/s, rad, rad/s, ft): a nose-high, rolling,
-#: yawing upset inside the paper's reset bounds except for the bank angle.
+#: Fixed upset state of the second scenario (wind axes; ft/s, rad, rad/s, ft): a nose-high (alpha 46 deg),
+#: rolling, yawing, banked upset inside the paper's reset bounds.
 FIXED_STATE = {"V": 600.0, "alpha": 0.8, "beta": 0.15, "p": 1.0, "q": 0.4, "r": 0.4, "mu": 0.6,
                "gamma": 0.3, "chi": 0.0, "h": 25_000.0}  # fmt: skip
 OMEGA_SETTLE_RADPS = 0.17
@@ -159,14 +160,8 @@ def register(app: typer.Typer) -> None:
         controller: str = typer.Option(
             "rl,smc,hybrid", help="Controllers, comma-separated: smc, rl, hybrid."
         ),
-        policy: str = typer.Option(
-            None,
-            help="rl/hybrid policy: run folder, .npz, checkpoint[@seed], shipped:full (default), "
-            "shipped:partial.",
-        ),
-        zeta: str = typer.Option(
-            "continuous", help="Hybrid zeta schedule: continuous, hysteresis (the paper's), always, never."
-        ),
+        policy: str = policy_option(),
+        zeta: str = zeta_option(),
         target_alpha: float = typer.Option(0.349, help="Target angle of attack, rad."),
         duration: float = typer.Option(60.0, help="Closed-loop time after engagement, s."),
         spin_s: float = typer.Option(30.0, help="Seconds held in the spin before engagement."),

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from harv_jax.commands.options import policy_option, zeta_option
 from harv_jax.errors import UsageError
 
 MAX_POINTS_PER_AXIS = 1000
@@ -219,11 +220,7 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def envelope(
         controller: str = typer.Option("smc", help="Controllers, comma-separated: smc, rl, hybrid."),
-        policy: str = typer.Option(
-            None,
-            help="rl/hybrid policy: run folder, .npz, checkpoint[@seed], shipped:full (default), "
-            "shipped:partial.",
-        ),
+        policy: str = policy_option(),
         grid: str = typer.Option(
             "alpha0:r0",
             help="Grid axes X:Y from V0, alpha0, beta0, p0, q0, r0, mu0, gamma0, h0; optional ranges in "
@@ -238,9 +235,7 @@ def register(app: typer.Typer) -> None:
             help="Off-grid initial states, e.g. 'V0=300,h0=20000' (default V0=800 ft/s, alpha0=0.436 rad, "
             "beta0=p0=q0=r0=mu0=gamma0=chi0=0, h0=25000 ft).",
         ),
-        zeta: str = typer.Option(
-            "continuous", help="Hybrid zeta schedule: continuous, hysteresis (the paper's), always, never."
-        ),
+        zeta: str = zeta_option(),
         seed: int = typer.Option(0, help="Seed of the controllers' keys (the grid itself is deterministic)."),
         chunk: int = typer.Option(250, help="Runs per compiled call (bounds memory)."),
         out: Path = typer.Option(Path("runs/envelope"), help="Output directory."),

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from harv_jax.commands.options import policy_option, zeta_option
 from harv_jax.errors import UsageError
 
 CONTROLLERS = ("smc", "rl", "hybrid")
@@ -343,14 +344,8 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def fly(
         controller: str = typer.Option("smc", help="Controller: smc, rl (policy only) or hybrid."),
-        policy: str = typer.Option(
-            None,
-            help="rl/hybrid policy: a run folder, .npz, checkpoint[@seed], shipped:full (default) "
-            "or shipped:partial.",
-        ),
-        zeta: str = typer.Option(
-            "continuous", help="Hybrid zeta schedule: continuous, hysteresis (the paper's), always, never."
-        ),
+        policy: str = policy_option(),
+        zeta: str = zeta_option(),
         scenario: str = typer.Option(
             "spin",
             help="spin (30 s pro-spin open loop, then the controller), random (one state from the "

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from harv_jax.commands.options import policy_option, zeta_option
 from harv_jax.errors import UsageError
 
 KNOWN_CONTROLLERS = ("smc", "rl", "hybrid")
@@ -180,14 +181,8 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def mc(
         controller: str = typer.Option("smc", help="Controllers, comma-separated: smc, rl, hybrid."),
-        policy: str = typer.Option(
-            None,
-            help="rl/hybrid policy: run folder, .npz, checkpoint[@seed], shipped:full (default), "
-            "shipped:partial.",
-        ),
-        zeta: str = typer.Option(
-            "continuous", help="Hybrid zeta schedule: continuous, hysteresis (the paper's), always, never."
-        ),
+        policy: str = policy_option(),
+        zeta: str = zeta_option(),
         runs: int = typer.Option(1000, help="Number of Monte Carlo runs."),
         target_alpha: float = typer.Option(0.349, help="Target angle of attack, rad."),
         duration: float = typer.Option(60.0, help="Run length, s."),

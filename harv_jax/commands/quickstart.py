@@ -13,6 +13,8 @@ from pathlib import Path
 
 import typer
 
+from harv_jax.commands.options import policy_option, zeta_option
+
 
 def register(app: typer.Typer) -> None:
     @app.command()
@@ -20,8 +22,8 @@ def register(app: typer.Typer) -> None:
         out: Path = typer.Option(Path("runs/quickstart"), help="Output directory."),
         runs: int = typer.Option(1000, help="Monte Carlo runs."),
         seed: int = typer.Option(0, help="Seed of the Monte Carlo."),
-        policy: str = typer.Option(None, help="Policy (default: the shipped fully trained one, shipped:full)."),
-        zeta: str = typer.Option("continuous", help="Hybrid zeta schedule (continuous, hysteresis, ...)."),
+        policy: str = policy_option(),
+        zeta: str = zeta_option(),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
     ) -> None:
         """Spin comparison and a Monte Carlo of SMC, RL and hybrid with the shipped policy, plus a report."""
@@ -40,7 +42,8 @@ def register(app: typer.Typer) -> None:
         rows = run_compare(names, policy, zeta, 0.349, 60.0, 30.0, None, seed, out_dir / "compare")
         for r in rows:
             if r["scenario"] == "spin":
-                typer.echo(f"[quickstart]     {r['controller']}: {r['outcome']}, recovery time {r['recovery_time_s']}")
+                t_rec = r["recovery_time_s"]
+                typer.echo(f"[quickstart]     {r['controller']}: {r['outcome']}, recovery time {t_rec}")
         typer.echo(f"[quickstart] 2/3 Monte Carlo: {runs} runs x 60 s from the paper's reset bounds")
         (out_dir / "mc").mkdir()
         s = run_monte_carlo(names, policy, runs, 0.349, 60.0, seed, False, out_dir / "mc", zeta=zeta)

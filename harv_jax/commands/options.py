@@ -1,0 +1,20 @@
+"""Command-line options shared by several commands (one definition, one help text)."""
+
+from __future__ import annotations
+
+import typer
+
+POLICY_HELP = (
+    "rl/hybrid policy: run folder, .npz, checkpoint[@seed], shipped:full (default), shipped:partial."
+)
+ZETA_HELP = "Hybrid zeta schedule: continuous, hysteresis (the paper's), always, never."
+
+
+def policy_option():
+    """``--policy`` (default None = the shipped fully trained policy)."""
+    return typer.Option(None, help=POLICY_HELP)
+
+
+def zeta_option():
+    """``--zeta`` (default continuous)."""
+    return typer.Option("continuous", help=ZETA_HELP)
