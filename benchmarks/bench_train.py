@@ -17,9 +17,9 @@ forward-equivalents (forward + backward). Environment arithmetic (RK4, table loo
 in the same run (best of a few square matmuls at the default precision the trainer uses, and at ``HIGHEST``
 for reference).
 
-Optionally (``stable_baselines3`` + torch installed, and a gymnasium adapter ``harv_jax.env.gym_env``),
-Stable-Baselines3 PPO with the paper's settings runs for ``--sb3-steps`` steps in the same process and the
-ratio is reported; otherwise the JSON says why it was skipped. Results go to
+Optionally (``stable_baselines3`` + torch + gymnasium installed), Stable-Baselines3 PPO with the paper's
+settings runs for ``--sb3-steps`` steps in the same process and the ratio is reported; otherwise the JSON
+says why it was skipped. ``benchmarks/bench_sb3.py`` is the dedicated side-by-side comparison. Results go to
 ``benchmarks/results/train_<machine>.json``. Needs only jax, flax, optax, numpy and harv_jax (no brax).
 """
 
@@ -119,33 +119,19 @@ def bench_trainer(env, env_params, num_envs: int, updates: int, repeats: int, un
 
 
 def bench_sb3(steps: int, episode_steps: int) -> dict[str, object]:
-    """Stable-Baselines3 PPO (paper settings) on the gymnasium adapter, if what it needs is installed."""
-    try:
-        import stable_baselines3  # noqa: F401
-        import torch  # noqa: F401
-        from stable_baselines3 import PPO
-    except ImportError as e:
-        return {"skipped": f"stable_baselines3/torch not installed ({e.name})"}
-    try:
-        from harv_jax.env import gym_env
-    except ImportError as e:
-        return {"skipped": f"gymnasium adapter harv_jax.env.gym_env unavailable ({e})"}
-    make = getattr(gym_env, "make_gym_env", None) or getattr(gym_env, "HarvRecoveryEnv", None)
-    if make is None:
-        return {"skipped": "harv_jax.env.gym_env has no make_gym_env/HarvRecoveryEnv"}
-    env = make(EnvConfig(episode_steps=episode_steps, domain_randomization=False))
-    model = PPO("MlpPolicy", env, learning_rate=5e-5, gamma=0.99, n_steps=2048, batch_size=64, n_epochs=10,
-                policy_kwargs={"net_arch": {"pi": list(HIDDEN), "vf": list(HIDDEN)},
-                               "activation_fn": torch.nn.Tanh}, device="cpu", verbose=0)  # fmt: skip
-    t0 = time.perf_counter()
-    model.learn(total_timesteps=steps)
-    dt = time.perf_counter() - t0
-    return {
-        "steps": steps,
-        "seconds": dt,
-        "env_steps_per_s": steps / dt,
-        "torch_threads": torch.get_num_threads(),
-    }
+    """Stable-Baselines3 PPO (paper settings) on the gymnasium adapter, if what it needs is installed.
+
+    The measurement is :func:`benchmarks.bench_sb3.measure_sb3` (``benchmarks/bench_sb3.py`` is the
+    side-by-side benchmark with our trainer at the same env settings).
+    """
+    from benchmarks.bench_sb3 import missing_requirements
+
+    missing = missing_requirements()
+    if missing:
+        return {"skipped": f"{', '.join(missing)} not installed"}
+    from benchmarks.bench_sb3 import measure_sb3
+
+    return measure_sb3(steps, {"episode_steps": episode_steps, "domain_randomization": False})
 
 
 def main() -> None:

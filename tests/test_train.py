@@ -24,6 +24,10 @@ from harv_jax.ppo.train import make_evaluate, make_train, run_training, seed_key
 
 REPO = Path(__file__).resolve().parents[1]
 
+if __name__ == "__main__" and sys.argv[1:2] == ["multiprocess"]:  # child of the 2-process test: before any
+    # array is created (TOY_PARAMS below), join the 2-process cluster
+    jax.distributed.initialize(f"localhost:{sys.argv[2]}", num_processes=2, process_id=int(sys.argv[3]))
+
 
 # ---------------------------------------------------------------------------------------------- toy env
 
@@ -31,7 +35,7 @@ REPO = Path(__file__).resolve().parents[1]
 @struct.dataclass
 class ToyState:
     x: jax.Array  # [3] position
-    t: jax.Array  # [] int32 step in episode
+    step: jax.Array  # [] int32 step in episode (the field `stagger_episodes` sets)
 
 
 @struct.dataclass
@@ -51,7 +55,7 @@ class ToyEnv:
     episode_steps = 12
 
     def _obs(self, s: ToyState) -> jax.Array:
-        return jnp.concatenate([s.x, (s.t / self.episode_steps)[None].astype(jnp.float32)])
+        return jnp.concatenate([s.x, (s.step / self.episode_steps)[None].astype(jnp.float32)])
 
     def reset(self, key: jax.Array, params: ToyParams) -> tuple[jax.Array, ToyState]:
         s = ToyState(jax.random.uniform(key, (3,), minval=-1.0, maxval=1.0), jnp.zeros((), jnp.int32))
@@ -59,9 +63,9 @@ class ToyEnv:
 
     def step(self, key: jax.Array, state: ToyState, action: jax.Array, params: ToyParams):
         x = state.x + params.gain * jnp.clip(action, -1.0, 1.0)
-        s = ToyState(x, state.t + 1)
+        s = ToyState(x, state.step + 1)
         term = jnp.any(jnp.abs(x) > 2.0)
-        trunc = (s.t >= self.episode_steps) & ~term
+        trunc = (s.step >= self.episode_steps) & ~term
         reward = -jnp.sum(x**2) - 5.0 * term
         done = term | trunc
         final_obs = self._obs(s)
@@ -175,6 +179,42 @@ def test_checkpoints_atomic_pruned_and_validated(full_run, tmp_path):
         checkpoint.restore_latest(tmp_path / "nothing", None, CFG)
 
 
+def test_checkpoint_without_a_newer_setting_restores(trainer, full_run, tmp_path):
+    """A checkpoint written before a PPO setting existed restores with that setting's default."""
+    from flax import serialization
+
+    _, run_dir = full_run
+    payload = checkpoint.read(checkpoint.checkpoint_paths(run_dir / "checkpoints")[-1])
+    old_config = json.loads(payload["config"])
+    del old_config["stagger_episodes"]
+    payload["config"] = json.dumps(old_config)
+    (tmp_path / "ckpt_000004.msgpack").write_bytes(serialization.msgpack_serialize(payload))
+    template = jax.eval_shape(trainer.init, seed_keys(jax.random.key(0), 2), TOY_PARAMS)
+    assert checkpoint.restore_latest(tmp_path, template, CFG).period == 4
+    with pytest.raises(UsageError, match="stagger_episodes=False vs True"):
+        checkpoint.restore_latest(tmp_path, template, CFG.replace(stagger_episodes=True))
+
+
+def test_stagger_episodes_spreads_first_episodes():
+    cfg = CFG.replace(num_seeds=1, num_envs=64)
+    keys = seed_keys(jax.random.key(3), 1)
+    plain = make_train(ToyEnv(), cfg, TOY_PARAMS).init(keys, TOY_PARAMS)
+    staggered = make_train(ToyEnv(), cfg.replace(stagger_episodes=True), TOY_PARAMS).init(keys, TOY_PARAMS)
+    steps = np.asarray(staggered.env_state.step[0])
+    assert np.all(np.asarray(plain.env_state.step) == 0)
+    assert steps.min() >= 0 and steps.max() < ToyEnv.episode_steps and len(np.unique(steps)) >= 6
+    # only the step counters differ: the stagger draws from a stream of its own
+    np.testing.assert_array_equal(staggered.env_state.x, plain.env_state.x)
+    np.testing.assert_array_equal(staggered.obs, plain.obs)
+    chex.assert_trees_all_equal(staggered.params, plain.params)
+
+    class NoTimeLimit(ToyEnv):
+        episode_steps = None
+
+    with pytest.raises(ValueError, match="stagger_episodes needs"):
+        make_train(NoTimeLimit(), cfg.replace(stagger_episodes=True), TOY_PARAMS)
+
+
 def test_policy_export_roundtrip(trainer, full_run, tmp_path):
     from harv_jax import policy as policy_api
 
@@ -227,6 +267,29 @@ def test_presets_load_and_bad_values():
         ppo_config.from_dict({"lrr": 1.0})
     with pytest.raises(UsageError, match="not divisible by the 2 available devices"):
         ppo_config.check_devices(CFG.replace(num_envs=3, minibatches=1), 2)
+
+
+def test_shipped_presets_equal_experiments_presets():
+    """The package-data copy (what a non-editable install loads) is byte-identical to experiments/presets."""
+    repo = sorted(p.name for p in (REPO / "experiments" / "presets").glob("*.toml"))
+    shipped = sorted(p.name for p in (REPO / "harv_jax" / "ppo" / "presets").glob("*.toml"))
+    assert repo == shipped and {"smoke.toml", "paper-partial.toml", "paper-full.toml"} <= set(repo)
+    for name in repo:
+        a = (REPO / "experiments" / "presets" / name).read_bytes()
+        b = (REPO / "harv_jax" / "ppo" / "presets" / name).read_bytes()
+        assert a == b, f"harv_jax/ppo/presets/{name} differs from experiments/presets/{name}: copy it over"
+
+
+def test_presets_load_from_package_data_without_checkout(monkeypatch, tmp_path):
+    want = ppo_config.load_preset("smoke")
+    monkeypatch.setattr(ppo_config, "PRESET_DIR", tmp_path / "no-checkout")  # as in a non-editable install
+    assert ppo_config.available_presets() == ["paper-full", "paper-partial", "smoke"]
+    assert str(ppo_config.preset_path("smoke")) == str(ppo_config.PACKAGE_PRESET_DIR / "smoke.toml")
+    assert ppo_config.load_preset("smoke") == want
+    with pytest.raises(
+        UsageError, match="unknown preset 'nope'; available: paper-full, paper-partial, smoke"
+    ):
+        ppo_config.load_preset("nope")
 
 
 def _cli(monkeypatch, capsys, *args: str) -> tuple[int, str]:
@@ -380,7 +443,55 @@ def _sharded_child() -> None:
     print(json.dumps(summary))
 
 
+def _multiprocess_child(port: str, process_id: int, run_dir: str, phase: str) -> None:
+    """One of 2 processes (1 CPU device each, gloo collectives; joined at import): train half the run, or
+    resume to the end."""
+    assert jax.process_count() == 2 and jax.process_index() == process_id, port
+    cfg = CFG.replace(num_seeds=1)
+    tr = make_train(ToyEnv(), cfg, TOY_PARAMS, devices=jax.devices())
+    kw = {"stop_after_periods": 2} if phase == "half" else {"resume": True}
+    res = run_training(jax.random.key(cfg.seed), ToyEnv(), TOY_PARAMS, cfg, trainer=tr, run_dir=run_dir, **kw)
+    params = [np.asarray(x).ravel().tolist() for x in jax.tree.leaves(jax.device_get(res.state.params))]
+    print(json.dumps({"devices": jax.device_count(), "periods": len(res.history), "params": params}))
+
+
+@pytest.mark.slow
+def test_two_processes_with_resume_match_one_process(tmp_path):
+    """Multi-host emulated on one machine: 2 processes x 1 CPU device (jax.distributed, gloo), checkpoint
+    after 2 periods, resume in 2 new processes; equals one process on one device (same total batch, seed)."""
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("localhost", 0))
+        port = str(sock.getsockname()[1])
+    env = dict(os.environ, JAX_PLATFORMS="cpu", XLA_FLAGS="--xla_backend_optimization_level=0")
+    run_dir = str(tmp_path / "run")
+    outs = {}
+    for phase in ("half", "resume"):
+        cmds = [[sys.executable, __file__, "multiprocess", port, str(i), run_dir, phase] for i in range(2)]
+        pipe = subprocess.PIPE
+        procs = [subprocess.Popen(c, env=env, stdout=pipe, stderr=pipe, text=True, cwd=REPO) for c in cmds]
+        outs[phase] = [p.communicate(timeout=600) for p in procs]
+        for p, (_, err) in zip(procs, outs[phase], strict=True):
+            assert p.returncode == 0, err[-3000:]
+    res = [json.loads(out.strip().splitlines()[-1]) for out, _ in outs["resume"]]
+    assert [r["devices"] for r in res] == [2, 2] and [r["periods"] for r in res] == [4, 4]
+    assert res[0]["params"] == res[1]["params"]  # replicated parameters agree bit for bit
+    assert [f.name for f in checkpoint.checkpoint_paths(tmp_path / "run" / "checkpoints")][
+        -1
+    ] == "ckpt_000004.msgpack"
+    cfg = CFG.replace(num_seeds=1)
+    one = run_training(jax.random.key(cfg.seed), ToyEnv(), TOY_PARAMS, cfg,
+                       trainer=make_train(ToyEnv(), cfg, TOY_PARAMS, devices=jax.devices()[:1]))  # fmt: skip
+    want = np.concatenate([np.asarray(x).ravel() for x in jax.tree.leaves(jax.device_get(one.state.params))])
+    got = np.concatenate([np.asarray(x) for x in res[0]["params"]])
+    # float reduction order differs (2 devices vs 1; children compile at -O0): 1e-4 relative after 24 updates
+    np.testing.assert_allclose(got, want, rtol=1e-3, atol=1e-4)
+
+
 if __name__ == "__main__" and sys.argv[1:] == ["sharded"]:
     _sharded_child()
+elif __name__ == "__main__" and sys.argv[1:2] == ["multiprocess"]:
+    _multiprocess_child(sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[5])
 elif __name__ == "__main__" and sys.argv[1:2] == ["train-slowly"]:
     _train_slowly_child(sys.argv[2])

@@ -313,8 +313,8 @@ def register(app: typer.Typer) -> None:
     def train(
         preset: str = typer.Option(
             None,
-            help="Preset in experiments/presets: smoke, paper-partial, paper-full "
-            "(or a path to a .toml). Default smoke.",
+            help="Preset (experiments/presets, shipped with the package): smoke, paper-partial, "
+            "paper-full (or a path to a .toml). Default smoke.",
         ),  # fmt: skip
         steps: int = typer.Option(None, help="Env steps per seed (> 0)."),
         num_envs: int = typer.Option(None, help="Parallel envs per seed; divisible by the device count."),

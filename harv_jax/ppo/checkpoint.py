@@ -68,6 +68,16 @@ def _history_from_json(text: str) -> list[dict[str, Any]]:
     ]
 
 
+def _to_host(x: Any) -> Any:
+    """A leaf as a value every process can fetch: arrays sharded over several processes (the env axis in a
+    multi-process run) are all-gathered first (``multihost_utils.process_allgather``, a collective)."""
+    if isinstance(x, jax.Array) and not x.is_fully_addressable:
+        from jax.experimental import multihost_utils
+
+        return multihost_utils.process_allgather(x, tiled=True)
+    return x
+
+
 def checkpoint_paths(ckpt_dir: str | Path) -> list[Path]:
     """Complete checkpoint files in ``ckpt_dir``, oldest first (temporary files are ignored)."""
     d = Path(ckpt_dir)
@@ -85,11 +95,18 @@ def save(
     history: list[dict[str, Any]],
     env_config: dict[str, Any],
 ) -> Path:
-    """Write ``ckpt_<period>.msgpack`` atomically and prune old checkpoints; returns its path."""
+    """Write ``ckpt_<period>.msgpack`` atomically and prune old checkpoints; returns its path.
+
+    In a multi-process run every process must call this (the env-sharded leaves are all-gathered); only
+    process 0 writes, so ``ckpt_dir`` must be on a filesystem that all processes see when they resume.
+    """
     d = Path(ckpt_dir)
-    d.mkdir(parents=True, exist_ok=True)
     paths, orig, _ = _flatten(state)
-    leaves = jax.device_get([jax.random.key_data(x) if _is_key(x) else x for x in orig])
+    leaves = jax.device_get([_to_host(jax.random.key_data(x) if _is_key(x) else x) for x in orig])
+    final = d / f"ckpt_{period:06d}.msgpack"
+    if jax.process_index() != 0:  # multi-process: every process gathers (a collective), process 0 writes
+        return final
+    d.mkdir(parents=True, exist_ok=True)
     payload = {
         "format": FORMAT,
         "version": VERSION,
@@ -103,7 +120,6 @@ def save(
         "leaves": {str(i): np.asarray(x) for i, x in enumerate(leaves)},
     }
     data = serialization.msgpack_serialize(payload)
-    final = d / f"ckpt_{period:06d}.msgpack"
     tmp = d / f".tmp-{os.getpid()}-{final.name}"
     with open(tmp, "wb") as f:
         f.write(data)
@@ -182,6 +198,8 @@ def restore_latest(ckpt_dir: str | Path, template: Any, cfg: PPOConfig) -> Resto
         raise UsageError(f"no checkpoint found in {str(ckpt_dir)!r}")
     payload = read(files[-1])
     stored = json.loads(payload["config"])
+    # settings added after a checkpoint was written are absent there; their defaults keep the old behaviour
+    stored = {**ppo_config.to_dict(ppo_config.PPOConfig()), **stored}
     current = ppo_config.to_dict(cfg)
     diff = sorted(k for k in set(stored) | set(current) if stored.get(k) != current.get(k))
     if diff:

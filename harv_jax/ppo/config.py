@@ -1,24 +1,31 @@
 """PPO configuration: a frozen dataclass, presets from ``experiments/presets/*.toml``, validation.
 
 A preset file has a ``[ppo]`` table (fields of :class:`PPOConfig`) and an optional ``[env]`` table that is
-passed to the environment's config unchanged. Every bad value raises :class:`harv_jax.errors.UsageError`
-with a one-line message naming the value and what is allowed. Derived quantities (updates, periods, batch
-sizes) are computed by functions and never written back into the config.
+passed to the environment's config unchanged. The presets are edited in ``experiments/presets`` and shipped
+as package data in ``harv_jax/ppo/presets`` (an identical copy, checked by a test), so that a non-editable
+install finds them too: a name is looked up in the checkout's ``experiments/presets`` first (when the
+package runs from a source tree) and then in the package data. Every bad value raises
+:class:`harv_jax.errors.UsageError` with a one-line message naming the value and what is allowed. Derived
+quantities (updates, periods, batch sizes) are computed by functions and never written back into the config.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import importlib.resources
 import math
 import tomllib
 from dataclasses import dataclass
+from importlib.resources.abc import Traversable
 from pathlib import Path
 from typing import Any
 
 from harv_jax.errors import UsageError
 
-#: Folder of the preset files (repository checkout; the package is installed editable).
+#: Folder of the preset files in a source checkout (absent in a non-editable install).
 PRESET_DIR = Path(__file__).resolve().parents[2] / "experiments" / "presets"
+#: The copy shipped as package data (``pyproject.toml`` [tool.setuptools.package-data]).
+PACKAGE_PRESET_DIR: Traversable = importlib.resources.files("harv_jax.ppo") / "presets"
 LR_SCHEDULES = ("constant", "linear")
 
 
@@ -44,6 +51,7 @@ class PPOConfig:
     normalize_advantage: bool = True  # standardise advantages per minibatch
     normalize_observations: bool = True  # running mean/std normalisation in the learner
     init_log_std: float = -0.5  # initial Gaussian log std (actions in [-1, 1])
+    stagger_episodes: bool = False  # start each env at a random step of its first episode (see make_train)
     hidden_sizes: tuple[int, ...] = (256, 128)  # actor and critic hidden widths (tanh)
     num_seeds: int = 1  # independent policies trained together (vmap over seeds)
     seed: int = 0  # base seed; seed s uses fold_in(key(seed), s)
@@ -100,7 +108,7 @@ def validate(cfg: PPOConfig) -> PPOConfig:
         raise UsageError(f"hidden_sizes {cfg.hidden_sizes!r} must be a non-empty list of positive integers")
     if isinstance(cfg.seed, bool) or not isinstance(cfg.seed, int) or cfg.seed < 0:
         raise UsageError(f"--seed {cfg.seed!r} must be a non-negative integer")
-    for name in ("normalize_advantage", "normalize_observations"):
+    for name in ("normalize_advantage", "normalize_observations", "stagger_episodes"):
         if not isinstance(getattr(cfg, name), bool):
             raise UsageError(f"{name} {getattr(cfg, name)!r} must be true or false")
     if (cfg.num_envs * cfg.unroll) % cfg.minibatches:
@@ -137,19 +145,37 @@ def to_dict(cfg: PPOConfig) -> dict[str, Any]:
     return d
 
 
+def _preset_dirs() -> list[Path | Traversable]:
+    """Where presets are looked up by name, in order: the checkout's folder (if any), the package data."""
+    return [d for d in (PRESET_DIR, PACKAGE_PRESET_DIR) if d.is_dir()]
+
+
+def _preset_files(folder: Path | Traversable) -> dict[str, Path | Traversable]:
+    return {f.name[: -len(".toml")]: f for f in folder.iterdir() if f.name.endswith(".toml") and f.is_file()}
+
+
 def available_presets() -> list[str]:
-    """Names of the preset files in ``experiments/presets``."""
-    return sorted(p.stem for p in PRESET_DIR.glob("*.toml"))
+    """Names of the presets (``experiments/presets`` in a checkout, and the package's copy)."""
+    return sorted({name for d in _preset_dirs() for name in _preset_files(d)})
+
+
+def preset_path(name: str) -> Path | Traversable | None:
+    """The file of preset ``name`` (first of ``experiments/presets``, package data), or None."""
+    for d in _preset_dirs():
+        f = _preset_files(d).get(name)
+        if f is not None:
+            return f
+    return None
 
 
 def load_preset(name: str) -> tuple[PPOConfig, dict[str, Any]]:
-    """Load a preset by name (``experiments/presets/<name>.toml``) or by path to a ``.toml`` file.
+    """Load a preset by name (``smoke``, ``paper-partial`` ...) or by path to a ``.toml`` file.
 
     Returns:
         (validated PPOConfig, env overrides dict from the ``[env]`` table).
     """
-    path = Path(name) if name.endswith(".toml") else PRESET_DIR / f"{name}.toml"
-    if not path.is_file():
+    path = Path(name) if name.endswith(".toml") else preset_path(name)
+    if path is None or not path.is_file():
         allowed = ", ".join(available_presets()) or "(none found)"
         raise UsageError(f"unknown preset {name!r}; available: {allowed}")
     try:

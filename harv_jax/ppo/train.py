@@ -13,6 +13,14 @@ auto-reset inside ``step``, ``info["truncation"]`` (time limit; the episode is b
 ``episode_metrics_fn(info)`` (default: the top-level scalar ``info`` entries; for the HARV env
 :func:`harv_episode_metrics`) is averaged over the episodes that end in a period, as ``episode/<name>``.
 
+Staggered episodes (``cfg.stagger_episodes``): all envs reset together at init, so without it their episodes
+stay in step; every update then sees one phase of the episode only (all envs in the initial transient, or
+all settled), and the time-limit truncations of all envs fall into the same update. With it, ``init`` sets
+each env's episode step counter (``env_state.step``) to a uniform draw in ``[0, episode_steps)``, so the first
+episodes are truncated at spread times and episode phases stay mixed from then on (legged_gym's random
+episode start). It needs the env's time limit (``env.episode_steps`` or ``env.config.episode_steps``) and a
+``step`` field in the env state.
+
 Multi-device: the env axis of the env state, observations and episode accumulators is sharded over a 1-D
 mesh ``("envs",)``; parameters, optimizer state and normaliser are replicated. Minibatches are constrained
 to be sharded along their batch axis, so each device computes the loss on its slice and XLA's partitioner
@@ -20,11 +28,16 @@ inserts the all-reduce that averages gradients. The algorithm does not depend on
 streams, global permutation), so 2-device and 1-device training agree to floating-point reduction order
 (tested).
 
-Multi-host (not tested here): start one process per host with the same command and, before anything else
-touches jax, call ``jax.distributed.initialize(coordinator_address="host0:1234", num_processes=P,
-process_id=i)`` (on SLURM/TPU the arguments are found automatically); then ``make_train(..., devices=
-jax.devices())`` builds the mesh over all global devices, ``num_envs`` must divide by ``jax.device_count()``,
-and only process 0 should write checkpoints and logs.
+Multi-host (Python API; the ``harv-jax train`` command is single-process): start one process per host with
+the same script and, before anything creates a jax array, call ``jax.distributed.initialize(
+coordinator_address="host0:1234", num_processes=P, process_id=i)`` (on SLURM, Open MPI or TPU the arguments
+are found automatically); then ``make_train(..., devices=jax.devices())`` builds the mesh over all global
+devices (the default, :func:`default_devices`, does the same on accelerators; on CPU it takes one local
+device), ``num_envs`` must divide by ``jax.device_count()``, and every process calls ``run_training`` with the
+same arguments. Metrics and parameters are replicated, so every process sees the same history;
+checkpoints all-gather the env-sharded state and only process 0 writes them (``run_dir`` must be on a
+filesystem all processes share for ``resume=True``). Tested with 2 processes x 1 CPU device (gloo):
+half a run + resume equals one process on one device to 1e-4 (``tests/test_train.py``, marked slow).
 """
 
 from __future__ import annotations
@@ -135,6 +148,18 @@ def env_sizes(env: Any, env_params: Any) -> tuple[int, int]:
     return int(obs_size), int(act_size)
 
 
+def episode_length(env: Any) -> int:
+    """The env's time limit in steps: ``env.episode_steps`` or ``env.config.episode_steps``.
+
+    Used by ``stagger_episodes``, which also needs the env state to count the steps of its episode in a
+    ``step`` field (truncation at ``step >= episode_steps``), as the HARV env's ``EnvState`` does.
+    """
+    n = getattr(env, "episode_steps", None) or getattr(getattr(env, "config", None), "episode_steps", None)
+    if n is None:
+        raise ValueError("stagger_episodes needs env.episode_steps or env.config.episode_steps")
+    return int(n)
+
+
 def make_optimizer(cfg: PPOConfig) -> optax.GradientTransformation:
     """Adam (eps 1e-5, as SB3) after global-norm clipping; constant or linearly decaying learning rate."""
     if cfg.lr_schedule == "linear":
@@ -235,6 +260,7 @@ def make_train(
     """
     devices = list(default_devices() if devices is None else devices)
     ppo_config.check_devices(cfg, len(devices))
+    episode_steps = episode_length(env) if cfg.stagger_episodes else 0
     mesh = Mesh(np.asarray(devices), (ENV_AXIS,))
     obs_size, act_size = env_sizes(env, env_params)
     networks = make_ppo_networks(obs_size, act_size, cfg.hidden_sizes, cfg.init_log_std)
@@ -252,9 +278,13 @@ def make_train(
 
     def init_one(key: jax.Array, env_params: Any) -> TrainingState:
         key_params, key_env, key_train = jax.random.split(key, 3)
+        key_stagger = jax.random.fold_in(key_env, 1)  # a new stream: the other draws stay as without stagger
         params = networks.init(key_params)
         obs, env_state = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(key_env, n_envs), env_params)
         obs = obs.astype(jnp.float32)
+        if cfg.stagger_episodes:  # first episodes end at uniformly spread times (legged_gym's random start)
+            offsets = jax.random.randint(key_stagger, (n_envs,), 0, episode_steps, env_state.step.dtype)
+            env_state = env_state.replace(step=offsets)
         normalizer = obs_norm.init_stats(obs_size)
         if cfg.normalize_observations:  # start from the reset distribution, not the identity
             normalizer = obs_norm.update_stats(normalizer, obs)
@@ -439,8 +469,10 @@ def make_evaluate(
 
     Runs ``num_envs`` episodes from reset for ``num_steps`` steps with ``clip(mean)`` actions and records each
     env's first episode only. Returns per-episode arrays [num_envs]: ``return`` (unscaled, until the first
-    episode end), ``ended`` (1 if it ended within num_steps) and the ``episode_metrics_fn`` entries at the
-    first episode end (or at the last step if it did not end). Not jitted: wrap it in ``jax.jit``.
+    episode end), ``ended`` (1 if it ended within num_steps), ``steps`` (steps of the first episode), the
+    ``episode_metrics_fn`` entries at the first episode end (or at the last step if it did not end), and
+    ``mean/<name>``: each of those entries averaged over the steps of the first episode (evaluated after
+    every step, as if the episode ended there). Not jitted: wrap it in ``jax.jit``.
     """
     ep_fn = episode_metrics_fn or default_episode_metrics
 
@@ -451,7 +483,7 @@ def make_evaluate(
         obs, state = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(key_reset, num_envs), env_params)
 
         def step(carry: tuple, key: jax.Array) -> tuple[tuple, None]:
-            state, obs, ret, alive, last = carry
+            state, obs, ret, alive, last, total, n = carry
             obs_in = obs_norm.normalize(normalizer, obs) if normalize_obs else obs
             mean, _ = networks.policy(params, obs_in)
             next_obs, state, reward, done, info = jax.vmap(env.step, in_axes=(0, 0, 0, None))(
@@ -461,15 +493,20 @@ def make_evaluate(
             ret = ret + alive * reward.astype(jnp.float32)
             metrics = jax.vmap(ep_fn)(info)
             last = {k: jnp.where(alive > 0, v, last[k]) for k, v in metrics.items()}
+            total = {k: total[k] + alive * v for k, v in metrics.items()}
+            n = n + alive
             alive = alive * (1.0 - ended)
-            return (state, next_obs.astype(jnp.float32), ret, alive, last), None
+            return (state, next_obs.astype(jnp.float32), ret, alive, last, total, n), None
 
         names = _episode_metric_names(env, env_params, ep_fn)
         last0 = {k: jnp.zeros((num_envs,), jnp.float32) for k in names}
         ones = jnp.ones((num_envs,), jnp.float32)
-        carry0 = (state, obs.astype(jnp.float32), 0.0 * ones, ones, last0)
-        (_, _, ret, alive, last), _ = jax.lax.scan(step, carry0, jax.random.split(key_steps, num_steps))
-        return {"return": ret, "ended": 1.0 - alive, **last}
+        carry0 = (state, obs.astype(jnp.float32), 0.0 * ones, ones, last0, last0, 0.0 * ones)
+        (_, _, ret, alive, last, total, n), _ = jax.lax.scan(
+            step, carry0, jax.random.split(key_steps, num_steps)
+        )
+        means = {f"mean/{k}": v / jnp.maximum(n, 1.0) for k, v in total.items()}
+        return {"return": ret, "ended": 1.0 - alive, "steps": n, **last, **means}
 
     return evaluate
 
@@ -491,6 +528,18 @@ class TrainResult(NamedTuple):
     history: list[dict[str, Any]]
     compile_s: float
     trainer: Trainer
+
+
+def _put_global(x: Any, sharding: jax.sharding.Sharding) -> jax.Array:
+    """A host value (numpy or key array) as a jax.Array with ``sharding``, also when the sharding spans
+    several processes (``jax.device_put`` accepts only process-local shardings there): each process builds
+    its own shards from the same host value."""
+    if jnp.issubdtype(getattr(x, "dtype", np.float32), jax.dtypes.prng_key):
+        data = np.asarray(jax.random.key_data(x))
+        arr = jax.make_array_from_callback(data.shape, sharding, lambda idx: data[idx])
+        return jax.random.wrap_key_data(arr, impl=jax.random.key_impl(x))
+    x = np.asarray(x)
+    return jax.make_array_from_callback(x.shape, sharding, lambda idx: x[idx])
 
 
 def run_training(
@@ -542,7 +591,7 @@ def run_training(
             raise ValueError("resume needs run_dir")
         template = jax.eval_shape(trainer.init, seed_keys(key, cfg.num_seeds), env_params)
         restored = checkpoint.restore_latest(ckpt_dir, template, cfg)
-        state = jax.device_put(restored.state, trainer.state_shardings)
+        state = jax.tree.map(_put_global, restored.state, trainer.state_shardings)
         history, start = restored.history, restored.period
     else:
         state = trainer.init(seed_keys(key, cfg.num_seeds), env_params)
