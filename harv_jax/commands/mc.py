@@ -138,7 +138,9 @@ def run_monte_carlo(
     inputs = sample_mc_inputs(jax.random.key(seed), runs, harv(), randomize=randomize)
     summary: dict = {
         "runs": runs, "target_alpha_rad": target_alpha, "duration_s": n_steps * dt_s, "seed": seed,
-        "randomize": randomize, "dt_s": dt_s, "policy": policy or "shipped:full", "zeta_schedule": zeta,
+        "randomize": randomize, "dt_s": dt_s,
+        "policy": (policy or "shipped:full") if {"rl", "hybrid"} & set(controllers) else None,
+        "zeta_schedule": zeta if "hybrid" in controllers else None,
         "devices": [str(d) for d in jax.local_devices()],
         "command": "harv-jax " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
         "controllers": {},

@@ -1,4 +1,4 @@
-"""The controller interface shared by every controller (SMC now; RL and hybrid later).
+"""The controller interface shared by every controller (SMC, RL-only, hybrid).
 
 A controller is a pair of pure functions, optax-style (``optax.GradientTransformation``):
 
