@@ -19,12 +19,16 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
-import json
 import os
 import platform
 import sys
 import time
 from pathlib import Path
+
+# allow `python benchmarks/bench_dynamics.py` from the repository root (benchmarks/ is not installed)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks.common import cpu_cores, machine_name, set_host_devices, write_json  # noqa: E402
 
 
 def _host_devices_from_argv(argv: list[str]) -> int:
@@ -34,25 +38,17 @@ def _host_devices_from_argv(argv: list[str]) -> int:
             return int(argv[i + 1])
         if a.startswith("--host-devices="):
             return int(a.split("=", 1)[1])
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return cpu_cores()
 
 
-if "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (
-        os.environ.get("XLA_FLAGS", "")
-        + f" --xla_force_host_platform_device_count={_host_devices_from_argv(sys.argv)}"
-    ).strip()
+set_host_devices(_host_devices_from_argv(sys.argv))
 
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 from jax.sharding import Mesh, NamedSharding, PartitionSpec  # noqa: E402
 
-# allow `python benchmarks/bench_dynamics.py` from the repository root (benchmarks/ is not installed)
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 from benchmarks import numpy_harv  # noqa: E402
-from benchmarks.common import machine_name  # noqa: E402
 from harv_jax.aircraft import harv  # noqa: E402
 from harv_jax.dynamics import actuator_step, from_wind, rk4_body_step  # noqa: E402
 
@@ -227,9 +223,7 @@ def main(argv: list[str] | None = None) -> dict:
             "meets_target": best["ratio_vs_numpy"] >= TARGET_RATIO,
         },
     }
-    args.out_dir.mkdir(parents=True, exist_ok=True)
-    path = args.out_dir / f"dynamics_{machine}.json"
-    path.write_text(json.dumps(result, indent=2) + "\n")
+    path = write_json(args.out_dir, f"dynamics_{machine}.json", result)
     print(f"best: batch {best['batch']}, {best['aircraft_steps_per_s']:.3e} aircraft-steps/s = "
           f"{best['ratio_vs_numpy']:.0f}x numpy (target {TARGET_RATIO:.0f}x)")  # fmt: skip
     print(f"wrote {path}")

@@ -29,14 +29,14 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
-import json
-import os
 import platform
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root, for benchmarks.*
+
+from benchmarks.common import cpu_cores, load_average_1min, set_host_devices, write_json  # noqa: E402
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
 DT_S = 0.01
@@ -48,17 +48,6 @@ TARGETS_S = {
     "mc_1000_hybrid_gpu_h100": 1.0,
     "envelope_10000_cpu_2core": 180.0,
 }
-
-
-def _cores() -> int:
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-
-
-def set_host_devices(n: int) -> None:
-    """One XLA host device per core, as ``harv-jax`` does (before jax initializes its backends)."""
-    flags = os.environ.get("XLA_FLAGS", "")
-    if "xla_force_host_platform_device_count" not in flags:
-        os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={n}".strip()
 
 
 def _timed(fn) -> float:
@@ -206,7 +195,7 @@ def main() -> None:
     ap.add_argument("--envelope-n", type=int, default=100, help="points per envelope axis")
     ap.add_argument("--envelope-chunk", type=int, default=None, help="runs per call (CPU 250, GPU 10,000)")
     ap.add_argument("--matmul-n", type=int, default=None, help="matmul size (CPU 2048, GPU 8192)")
-    ap.add_argument("--host-devices", type=int, default=_cores(), help="XLA host devices on a CPU")
+    ap.add_argument("--host-devices", type=int, default=cpu_cores(), help="XLA host devices on a CPU")
     ap.add_argument("--quick", action="store_true", help="64 runs x 5 s (+ 8 x 8 map): a sanity run")
     ap.add_argument("--machine", default=None)
     ap.add_argument("--note", default="", help="free text stored in the JSON (e.g. 'machine shared')")
@@ -294,8 +283,8 @@ def main() -> None:
         "python": platform.python_version(),
         "platform": platform.platform(),
         "device": {"platform": dev.platform, "kind": dev.device_kind, "count": jax.local_device_count()},
-        "cpu_affinity": _cores(),
-        "load_average_1min": os.getloadavg()[0] if hasattr(os, "getloadavg") else None,
+        "cpu_affinity": cpu_cores(),
+        "load_average_1min": load_average_1min(),
         "config": {
             "runs": runs,
             "duration_s": n_steps * DT_S,
@@ -317,9 +306,8 @@ def main() -> None:
         "skipped": skipped,
         "targets": targets,
     }
-    args.out_dir.mkdir(parents=True, exist_ok=True)
-    path = args.out_dir / (f"mc_{machine}_quick.json" if args.quick else f"mc_{machine}.json")
-    path.write_text(json.dumps(result, indent=2) + "\n")
+    name = f"mc_{machine}_quick.json" if args.quick else f"mc_{machine}.json"
+    path = write_json(args.out_dir, name, result)
     print(f"wrote {path}")
 
 

@@ -33,7 +33,6 @@ from __future__ import annotations
 import argparse
 import datetime as _dt
 import importlib
-import json
 import os
 import platform
 import shlex
@@ -200,7 +199,7 @@ def main() -> None:
     import stable_baselines3
     import torch
 
-    from benchmarks.common import machine_name
+    from benchmarks.common import cpu_cores, machine_name, write_json
     from harv_jax.ppo import config as ppo_config
 
     base, env_table = ppo_config.load_preset(args.preset)
@@ -252,7 +251,7 @@ def main() -> None:
             "numpy": np.__version__,
         },
         "platform": platform.platform(),
-        "cpu_affinity": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
+        "cpu_affinity": cpu_cores(),
         "load_average_1_5_15min": {
             "start": load_start,
             "before_sb3": load_mid,
@@ -271,9 +270,7 @@ def main() -> None:
             "best_ours_over_sb3": max(o["ratio_over_sb3"] for o in ours.values()),
         },
     }
-    args.out_dir.mkdir(parents=True, exist_ok=True)
-    path = args.out_dir / f"sb3_{machine}.json"
-    path.write_text(json.dumps(result, indent=2) + "\n")
+    path = write_json(args.out_dir, f"sb3_{machine}.json", result)
     print(f"wrote {path}")
 
 

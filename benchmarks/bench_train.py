@@ -27,8 +27,6 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
-import json
-import os
 import platform
 import sys
 import time
@@ -40,7 +38,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.common import machine_name  # noqa: E402
+from benchmarks.common import cpu_cores, load_average_1min, machine_name, write_json  # noqa: E402
 from harv_jax.env import EnvConfig, default_params, make_env  # noqa: E402
 from harv_jax.ppo import config as ppo_config  # noqa: E402
 from harv_jax.ppo.config import PPOConfig  # noqa: E402
@@ -207,8 +205,8 @@ def main() -> None:
         "python": platform.python_version(),
         "platform": platform.platform(),
         "device": {"platform": dev.platform, "kind": dev.device_kind, "count": jax.device_count()},
-        "cpu_affinity": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
-        "load_average_1min": os.getloadavg()[0] if hasattr(os, "getloadavg") else None,
+        "cpu_affinity": cpu_cores(),
+        "load_average_1min": load_average_1min(),
         "config": {
             "hidden_sizes": list(HIDDEN),
             "unroll": args.unroll,
@@ -229,9 +227,7 @@ def main() -> None:
         },  # fmt: skip
         "sb3": sb3,
     }
-    args.out_dir.mkdir(parents=True, exist_ok=True)
-    path = args.out_dir / f"train_{machine}.json"
-    path.write_text(json.dumps(result, indent=2) + "\n")
+    path = write_json(args.out_dir, f"train_{machine}.json", result)
     print(f"wrote {path}")
 
 

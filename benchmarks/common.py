@@ -2,8 +2,36 @@
 
 from __future__ import annotations
 
+import json
 import os
 import re
+from pathlib import Path
+from typing import Any
+
+
+def cpu_cores() -> int:
+    """CPU cores this process may run on (its affinity; all cores where affinity is unknown)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def set_host_devices(n: int) -> None:
+    """``n`` XLA host devices (unless XLA_FLAGS already sets a count); call before jax starts its backends."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_force_host_platform_device_count" not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={n}".strip()
+
+
+def load_average_1min() -> float | None:
+    """The 1-minute load average (None where the OS has none): how busy the machine was."""
+    return os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+
+
+def write_json(out_dir: Path, file_name: str, result: dict[str, Any]) -> Path:
+    """Write a benchmark result as indented JSON to ``out_dir/file_name``; returns the path."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / file_name
+    path.write_text(json.dumps(result, indent=2) + "\n")
+    return path
 
 
 def machine_name(override: str | None = None) -> str:
@@ -15,11 +43,7 @@ def machine_name(override: str | None = None) -> str:
     else:
         dev = jax.devices()[0]
         if dev.platform == "cpu":
-            try:
-                n = len(os.sched_getaffinity(0))
-            except AttributeError:  # not on Linux
-                n = os.cpu_count() or 0
-            name = f"cpu-{n}core"
+            name = f"cpu-{cpu_cores()}core"
         else:
             m = re.search(r"\b([a-z]\d{2,4}[a-z]?)\b", dev.device_kind.lower())  # h100, a100, h200, l4 ...
             name = f"{dev.platform}-{m.group(1) if m else dev.device_kind}"
