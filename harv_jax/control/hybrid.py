@@ -194,10 +194,11 @@ def make_hybrid(
         u_fb, terms = smc_command(
             x_wind, reference_rad, state.integral_rad_s, params, g.smc, cfg.smc, u_offset_rad=u_rl
         )
-        zstate, switched = hysteresis_step(
-            state.zeta, terms.e, g.e_on_rad, g.e_off_rad, g.zeta_min_dwell_s, dt_s
-        )
+        zstate, switched = state.zeta, jnp.asarray(False)  # the tube's state moves only under hysteresis
         if cfg.schedule == "hysteresis":
+            zstate, switched = hysteresis_step(
+                state.zeta, terms.e, g.e_on_rad, g.e_off_rad, g.zeta_min_dwell_s, dt_s
+            )
             zeta = g.zeta_floor + (1.0 - g.zeta_floor) * zstate.on.astype(u_fb.dtype)
         elif cfg.schedule == "continuous":
             zeta = g.zeta_floor + (1.0 - g.zeta_floor) * continuous_zeta(terms.e, g.e_on_rad, g.e_off_rad)
@@ -230,7 +231,7 @@ def make_hybrid(
         )
         info = {
             "zeta": zeta,
-            "zeta_switched": switched if cfg.schedule == "hysteresis" else jnp.asarray(False),
+            "zeta_switched": switched,
             "fallback": fallback,
             "fallback_entered": fallback & ~state.supervisor.fallback,
             "fallback_reason": sup.reason,
