@@ -1,10 +1,12 @@
-"""RL-only and hybrid Monte Carlo of every seed of the H100 training runs (mean +- std over seeds).
+"""RL-only and hybrid Monte Carlo of every seed of a set of training runs (mean +- std over seeds).
 
     python experiments/seed_eval.py --runs 256 --out experiments/results/seed_eval.json
+    python experiments/seed_eval.py --runs-dir experiments/runs/cpu-2core --presets paper-partial \
+        --out experiments/results/seed_eval_cpu.json
 
-Policies: experiments/runs/gpu-h100/{paper-partial,paper-full}/policy/policy_seed{0,1,2}.npz. Same 256 initial
-states (paper reset bounds, seed 0, nominal aircraft, alpha_d 0.349 rad, 60 s) for every policy; the hybrid is
-the default one (continuous zeta, tight tube, zeta floor 0.2).
+Policies: RUNS_DIR/{preset}/policy/policy_seed{0,1,...}.npz. Same initial states (paper reset bounds, seed 0,
+nominal aircraft, alpha_d 0.349 rad, 60 s) for every policy and for the SMC-only baseline; the hybrid is the
+default one (continuous zeta, tight tube, zeta floor 0.2).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import numpy as np
 from harv_jax.aircraft import harv
 from harv_jax.control.hybrid import HybridConfig, make_hybrid
 from harv_jax.control.rl import make_rl_controller
+from harv_jax.control.smc import make_smc
 from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, summarize_controller
 from harv_jax.policy import load
 
@@ -31,8 +34,13 @@ METRICS = {
     "mu_err_deg": ("terminal_error_deg", "mu", "mean"),
     "alpha_within_2": ("terminal_error_deg", "alpha", "within_2"),
     "control_tv_rad": ("control_tv", "mean"),
+    "tv_elevator_rad": ("control_tv", "by_channel", "elevator"),
+    "tv_aileron_rad": ("control_tv", "by_channel", "aileron"),
+    "tv_rudder_rad": ("control_tv", "by_channel", "rudder"),
     "chatter_rad2": ("chatter_index", "mean"),
     "t_recover_p50_s": ("recovery_time_s", "p50"),
+    "alpha_settled": ("alpha_recovery_time_s", "fraction"),
+    "t_alpha_p50_s": ("alpha_recovery_time_s", "p50"),
 }
 
 
@@ -47,15 +55,24 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=256)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--runs-dir", type=Path, default=RUNS_DIR, help="folder with one run folder per preset")
+    ap.add_argument("--presets", default="paper-partial,paper-full", help="comma-separated run folders")
     args = ap.parse_args()
     if args.out.exists():
         raise SystemExit(f"{args.out} exists; remove it first")
     inputs = sample_mc_inputs(jax.random.key(args.seed), args.runs, harv(), randomize=False)
     ref = jnp.array([0.349, 0.0, 0.0])
-    res: dict = {"runs": args.runs, "seed": args.seed, "policies": {}, "over_seeds": {}}
-    for preset in ("paper-partial", "paper-full"):
-        for s in range(3):
-            act = load(RUNS_DIR / preset / "policy" / f"policy_seed{s}.npz").deterministic
+    res: dict = {"runs": args.runs, "seed": args.seed, "runs_dir": str(args.runs_dir), "policies": {},
+                 "over_seeds": {}}  # fmt: skip
+    out, wall = run_mc(make_smc(), inputs, ref, 6000, 0.01, 10, 256)
+    summ = summarize_controller(out, wall, 6000)
+    res["smc"] = {k: pick(summ, p) for k, p in METRICS.items()}
+    print("smc", res["smc"], flush=True)
+    for preset in args.presets.split(","):
+        files = sorted((args.runs_dir / preset / "policy").glob("policy_seed*.npz"))
+        seeds = [int(f.stem.removeprefix("policy_seed")) for f in files]
+        for s, f in zip(seeds, files, strict=True):
+            act = load(f).deterministic
             for name, ctrl in (
                 ("rl", make_rl_controller(act)),
                 ("hybrid", make_hybrid(act, HybridConfig("continuous"))),
@@ -74,7 +91,7 @@ def main() -> None:
         for name in ("rl", "hybrid"):
             agg = {}
             for k in METRICS:
-                v = [res["policies"][f"{preset}/seed{s}/{name}"][k] for s in range(3)]
+                v = [res["policies"][f"{preset}/seed{s}/{name}"][k] for s in seeds]
                 v = np.array([np.nan if x is None else x for x in v], float)
                 agg[k] = {"mean": float(np.nanmean(v)) if np.isfinite(v).any() else None,
                           "std": float(np.nanstd(v)) if np.isfinite(v).any() else None}  # fmt: skip

@@ -86,6 +86,10 @@ def test_summary_percentiles_match_numpy(mc32):
     assert s["terminal_error_deg"]["alpha"]["p50"] == pytest.approx(float(np.percentile(e, 50)))
     assert s["terminal_error_deg"]["alpha"]["p95"] == pytest.approx(float(np.percentile(e, 95)))
     assert s["terminal_error_deg"]["alpha"]["within_2"] == pytest.approx(float(np.mean(np.abs(e) <= 2)))
+    tv = np.asarray(out.metrics.control_tv_rad, np.float64)
+    assert s["control_tv"]["by_channel"]["aileron"] == pytest.approx(float(tv[:, 1].mean()))
+    for block in ("control_tv", "chatter_index"):
+        assert sum(s[block]["by_channel"].values()) == pytest.approx(s[block]["mean"], rel=1e-5)
 
 
 def test_common_random_numbers():

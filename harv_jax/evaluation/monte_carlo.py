@@ -197,6 +197,12 @@ def _pct(a: np.ndarray, q: float) -> float | None:
     return float(np.percentile(a, q)) if a.size else None
 
 
+def _by_channel(per_run: Any) -> dict[str, float]:
+    """Mean over runs of a per-channel [N, 3] metric, keyed by surface."""
+    means = np.mean(np.asarray(per_run, np.float64), axis=0)
+    return {name: float(v) for name, v in zip(("elevator", "aileron", "rudder"), means, strict=True)}
+
+
 def summarize_controller(
     out: MCRunOutput, wall: dict[str, float], n_steps: int | None = None
 ) -> dict[str, Any]:
@@ -256,8 +262,16 @@ def summarize_controller(
             "mean": float(np.mean(m.altitude_loss_ft)),
             "p95": _pct(np.asarray(m.altitude_loss_ft), 95),
         },
-        "control_tv": {"mean": float(np.mean(np.sum(m.control_tv_rad, axis=-1))), "unit": "rad"},
-        "chatter_index": {"mean": float(np.mean(np.sum(m.chatter_index_rad2, axis=-1))), "unit": "rad^2"},
+        "control_tv": {
+            "mean": float(np.mean(np.sum(m.control_tv_rad, axis=-1))),
+            "by_channel": _by_channel(m.control_tv_rad),
+            "unit": "rad",
+        },
+        "chatter_index": {
+            "mean": float(np.mean(np.sum(m.chatter_index_rad2, axis=-1))),
+            "by_channel": _by_channel(m.chatter_index_rad2),
+            "unit": "rad^2",
+        },
         "saturation_fraction": float(np.mean(m.sat_position_fraction)),
         "rate_saturation_fraction": float(np.mean(m.sat_rate_fraction)),
         "safety_interventions": per_run("intervened") or 0.0,
