@@ -44,10 +44,22 @@ METRICS = {
 }
 
 
+N_STEPS = 6000  # 60 s at dt 0.01 s
+
+
 def pick(d: dict, path: tuple[str, ...]):
     for k in path:
         d = d[k]
     return d
+
+
+def evaluate(label: str, ctrl, inputs, ref) -> dict:
+    """One Monte Carlo of ``ctrl``: the METRICS row (printed with 4 significant digits)."""
+    out, wall = run_mc(ctrl, inputs, ref, N_STEPS, 0.01, 10, 256)
+    summ = summarize_controller(out, wall, N_STEPS)
+    row = {k: pick(summ, p) for k, p in METRICS.items()}
+    print(label, {k: (float(f"{v:.4g}") if isinstance(v, float) else v) for k, v in row.items()}, flush=True)
+    return row
 
 
 def main() -> None:
@@ -64,10 +76,7 @@ def main() -> None:
     ref = jnp.array([0.349, 0.0, 0.0])
     res: dict = {"runs": args.runs, "seed": args.seed, "runs_dir": str(args.runs_dir), "policies": {},
                  "over_seeds": {}}  # fmt: skip
-    out, wall = run_mc(make_smc(), inputs, ref, 6000, 0.01, 10, 256)
-    summ = summarize_controller(out, wall, 6000)
-    res["smc"] = {k: pick(summ, p) for k, p in METRICS.items()}
-    print("smc", res["smc"], flush=True)
+    res["smc"] = evaluate("smc", make_smc(), inputs, ref)
     for preset in args.presets.split(","):
         files = sorted((args.runs_dir / preset / "policy").glob("policy_seed*.npz"))
         seeds = [int(f.stem.removeprefix("policy_seed")) for f in files]
@@ -77,17 +86,8 @@ def main() -> None:
                 ("rl", make_rl_controller(act)),
                 ("hybrid", make_hybrid(act, HybridConfig("continuous"))),
             ):
-                out, wall = run_mc(ctrl, inputs, ref, 6000, 0.01, 10, 256)
-                summ = summarize_controller(out, wall, 6000)
-                row = {k: pick(summ, p) for k, p in METRICS.items()}
-                res["policies"][f"{preset}/seed{s}/{name}"] = row
-                print(
-                    preset,
-                    s,
-                    name,
-                    {k: (round(v, 4) if isinstance(v, float) else v) for k, v in row.items()},
-                    flush=True,
-                )
+                key = f"{preset}/seed{s}/{name}"
+                res["policies"][key] = evaluate(key, ctrl, inputs, ref)
         for name in ("rl", "hybrid"):
             agg = {}
             for k in METRICS:
