@@ -20,7 +20,7 @@ from harv_jax.errors import UsageError
 from harv_jax.ppo import checkpoint
 from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo.config import PPOConfig
-from harv_jax.ppo.train import make_evaluate, make_train, run_training, seed_keys
+from harv_jax.ppo.train import make_evaluate, make_train, run_training, seed_keys, warm_start
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -156,6 +156,31 @@ def test_resume_equals_continuous(trainer, full_run, tmp_path):
     chex.assert_trees_all_equal(a, b)
     np.testing.assert_array_equal(resumed.history[-1]["episode_return"], full.history[-1]["episode_return"])
     assert trainer.num_traces() == 1  # resuming reused the compiled period
+
+
+def test_warm_start_from_a_trained_policy(trainer, full_run):
+    """--init-policy: every seed starts from one policy (fine-tuning); a shape mismatch is named."""
+    res, _ = full_run
+    pick = lambda tree: jax.tree.map(lambda x: np.asarray(x[1]), tree)  # noqa: E731
+    params, normalizer = pick(res.state.params), pick(res.state.normalizer)
+    fresh = trainer.init(seed_keys(jax.random.key(5), CFG.num_seeds), TOY_PARAMS)
+    warm = warm_start(fresh, params, normalizer)
+    for s in range(CFG.num_seeds):
+        seed_s = lambda tree, s=s: jax.tree.map(lambda x: np.asarray(x[s]), tree)  # noqa: E731
+        chex.assert_trees_all_equal(seed_s(warm.params), params)
+        chex.assert_trees_all_equal(seed_s(warm.normalizer), normalizer)
+    chex.assert_trees_all_equal(warm.env_state, fresh.env_state)  # only the learner is replaced
+    assert warm.params.policy["params"]["mlp"]["out"]["kernel"].sharding == fresh.params.policy["params"][
+        "mlp"]["out"]["kernel"].sharding  # fmt: skip
+    # a run started from the trained policy begins where that policy is, not at the random init's return
+    key = jax.random.key(5)
+    cold = run_training(key, ToyEnv(), TOY_PARAMS, CFG, trainer=trainer, stop_after_periods=1)
+    hot = run_training(key, ToyEnv(), TOY_PARAMS, CFG, trainer=trainer, stop_after_periods=1,
+                       init_policy=(params, normalizer))  # fmt: skip
+    assert np.all(hot.history[0]["episode_return"] > cold.history[0]["episode_return"] + 1.0)
+    bad = jax.tree.map(lambda x: x[..., :3] if x.ndim == 2 else x, params)  # narrower kernels
+    with pytest.raises(ValueError, match=r"initial policy parameter .*kernel.* has shape \(4, 3\)"):
+        warm_start(fresh, bad, normalizer)
 
 
 def test_checkpoints_atomic_pruned_and_validated(full_run, tmp_path):
@@ -314,6 +339,8 @@ def _cli(monkeypatch, capsys, *args: str) -> tuple[int, str]:
         (["--out", "{tmp}/full"], "already exists and is not empty"),
         (["--steps", "abc"], "Invalid value for '--steps'"),
         (["--seeds", "0", "--out", "{tmp}/o"], "--seeds 0 must be a positive integer"),
+        (["--resume", "{tmp}", "--init-policy", "shipped:partial"], "drop --init-policy"),
+        (["--init-policy", "shipped:nope", "--out", "{tmp}/o"], "shipped policy 'nope' is unknown"),
     ],
 )
 def test_cli_bad_flags_one_line(monkeypatch, capsys, tmp_path, args, message):

@@ -200,15 +200,22 @@ def run_train(
     out: Path | None,
     resume: Path | None,
     force: bool,
+    init_policy: str | None = None,
 ) -> dict[str, Any]:
-    """Validate, build, train, write outputs; returns a summary dict. Raises UsageError on bad input."""
+    """Validate, build, train, write outputs; returns a summary dict. Raises UsageError on bad input.
+
+    ``init_policy``: a policy spec (``shipped:partial``, a ``.npz`` or checkpoint path[@seed]) every seed
+    starts from instead of a random initialization (fine-tuning; recorded in ``config.json``).
+    """
     from harv_jax.ppo import checkpoint
     from harv_jax.ppo import config as ppo_config
 
     if resume is not None:
-        given = sorted(k for k, v in overrides.items() if v is not None)
-        if given or preset is not None:
-            what = "--preset" if preset is not None else "--" + given[0].replace("_", "-")
+        given = ["--preset"] if preset is not None else []
+        given += ["--" + k.replace("_", "-") for k, v in sorted(overrides.items()) if v is not None]
+        given += ["--init-policy"] if init_policy is not None else []
+        if given:
+            what = given[0]
             raise UsageError(f"--resume continues the stored configuration; drop {what}")
         if out is not None and Path(out).resolve() != Path(resume).resolve():
             raise UsageError(f"--resume writes into its own folder; drop --out {str(out)!r}")
@@ -228,14 +235,25 @@ def run_train(
 
     ppo_config.check_devices(cfg, len(default_devices()))
     env, env_params = make_harv_env(env_table)
+    trainer = make_train(env, cfg, env_params, episode_metrics_fn=harv_episode_metrics)
+    init = None
+    if init_policy is not None:  # checked before --out is touched
+        from harv_jax.policy import resolve_policy
+        from harv_jax.ppo.train import check_init_policy
+
+        pol = resolve_policy(init_policy)
+        init = (pol.params, pol.normalizer)
+        keys = jax.random.split(jax.random.key(0), cfg.num_seeds)
+        try:  # against the run's abstract state: nothing is allocated
+            check_init_policy(jax.eval_shape(trainer.init, keys, env_params), *init)
+        except ValueError as e:
+            raise UsageError(f"--init-policy {init_policy!r}: {e}") from None
     if resume is None:
         out_dir = prepare_out_dir(out, force)
-        (out_dir / "config.json").write_text(
-            json.dumps(
-                {"preset": preset or "smoke", "ppo": ppo_config.to_dict(cfg), "env": env_table}, indent=2
-            )
-        )
-    trainer = make_train(env, cfg, env_params, episode_metrics_fn=harv_episode_metrics)
+        record = {"preset": preset or "smoke", "ppo": ppo_config.to_dict(cfg), "env": env_table}
+        if init_policy is not None:
+            record["init_policy"] = init_policy
+        (out_dir / "config.json").write_text(json.dumps(record, indent=2))
     n_periods = ppo_config.num_periods(cfg)
     total = n_periods * ppo_config.steps_per_period(cfg)
     start_steps = 0
@@ -287,7 +305,7 @@ def run_train(
     with progress:
         result = run_training(
             key, env, env_params, cfg, run_dir=out_dir, resume=resume is not None, env_config=env_table,
-            progress_fn=on_period, trainer=trainer,
+            progress_fn=on_period, trainer=trainer, init_policy=init,
         )  # fmt: skip
     tb.close()
     history = result.history
@@ -329,11 +347,15 @@ def register(app: typer.Typer) -> None:
             None, help="Continue the run in this directory from its last checkpoint."
         ),
         force: bool = typer.Option(False, help="Replace an existing non-empty --out directory."),
+        init_policy: str = typer.Option(
+            None,
+            help="Start every seed from this policy (shipped:full|partial, or a path[@seed]): fine-tuning.",
+        ),
     ) -> None:
         """Train PPO policies (several seeds at once) on the spin/upset recovery env."""
         overrides = {"total_steps": steps, "num_envs": num_envs, "unroll": unroll, "epochs": epochs,
                      "minibatches": minibatches, "lr": lr, "num_seeds": seeds, "seed": seed}  # fmt: skip
-        summary = run_train(preset, overrides, out, resume, force)
+        summary = run_train(preset, overrides, out, resume, force, init_policy)
         ret = summary.get("episode_return", {})
         rec = summary.get("episode/recovered", {})
         typer.echo(

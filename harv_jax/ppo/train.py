@@ -454,6 +454,43 @@ def seed_keys(key: jax.Array, num_seeds: int) -> jax.Array:
     return jax.vmap(lambda s: jax.random.fold_in(key, s))(jnp.arange(num_seeds))
 
 
+def check_init_policy(state: Any, params: PPOParams, normalizer: obs_norm.RunningStats) -> None:
+    """Raise ValueError unless one policy's (params, normalizer) fit every seed of ``state``.
+
+    ``state`` may be abstract (``jax.eval_shape`` of ``Trainer.init``): only structures and shapes are read.
+    """
+    old, treedef = jax.tree_util.tree_flatten_with_path((state.params, state.normalizer))
+    if jax.tree_util.tree_structure((params, normalizer)) != treedef:
+        raise ValueError("the initial policy's parameters do not have this run's structure (networks differ)")
+    for (path, o), n in zip(old, jax.tree_util.tree_leaves((params, normalizer)), strict=True):
+        need = tuple(o.shape[1:])  # o has the leading seed axis
+        if np.shape(n) != need:
+            name = jax.tree_util.keystr(path)
+            raise ValueError(
+                f"initial policy parameter {name} has shape {np.shape(n)}; this run needs {need}"
+            )
+
+
+def warm_start(state: TrainingState, params: PPOParams, normalizer: obs_norm.RunningStats) -> TrainingState:
+    """Every seed of ``state`` starts from one policy's ``params`` and observation statistics.
+
+    The optimizer state stays the fresh one (Adam's moments are zeros whatever the parameters), so this is
+    fine-tuning from the policy with the run's own learning-rate schedule. Shardings are kept.
+
+    Raises:
+        ValueError: from :func:`check_init_policy`.
+    """
+    check_init_policy(state, params, normalizer)
+    old, treedef = jax.tree_util.tree_flatten((state.params, state.normalizer))
+    new = jax.tree_util.tree_leaves((params, normalizer))
+    out = [
+        _put_global(np.broadcast_to(np.asarray(n, o.dtype), o.shape), o.sharding)
+        for o, n in zip(old, new, strict=True)
+    ]
+    params_b, normalizer_b = jax.tree_util.tree_unflatten(treedef, out)
+    return state.replace(params=params_b, normalizer=normalizer_b)
+
+
 # ---------------------------------------------------------------------------------------------- evaluation
 
 
@@ -556,6 +593,7 @@ def run_training(
     stop_after_periods: int | None = None,
     episode_metrics_fn: Callable[[dict[str, Any]], dict[str, jax.Array]] | None = None,
     trainer: Trainer | None = None,
+    init_policy: tuple[PPOParams, obs_norm.RunningStats] | None = None,
 ) -> TrainResult:
     """Host loop: init or resume, run periods, call ``progress_fn``, checkpoint every K periods and last.
 
@@ -574,6 +612,8 @@ def run_training(
         episode_metrics_fn: see :func:`make_train`.
         trainer: a trainer already built by ``make_train`` for the same env and cfg (reuses its compiled
             functions; ``devices`` and ``episode_metrics_fn`` are then ignored).
+        init_policy: (params, normalizer) of one policy every seed starts from (:func:`warm_start`);
+            ignored on resume (the checkpoint has the state).
 
     Returns:
         A :class:`TrainResult`.
@@ -595,6 +635,8 @@ def run_training(
         history, start = restored.history, restored.period
     else:
         state = trainer.init(seed_keys(key, cfg.num_seeds), env_params)
+        if init_policy is not None:
+            state = warm_start(state, *init_policy)
     del key
     compile_s = 0.0
     last = n_periods if stop_after_periods is None else min(n_periods, stop_after_periods)
