@@ -215,8 +215,7 @@ def run_train(
         given += ["--" + k.replace("_", "-") for k, v in sorted(overrides.items()) if v is not None]
         given += ["--init-policy"] if init_policy is not None else []
         if given:
-            what = given[0]
-            raise UsageError(f"--resume continues the stored configuration; drop {what}")
+            raise UsageError(f"--resume continues the stored configuration; drop {given[0]}")
         if out is not None and Path(out).resolve() != Path(resume).resolve():
             raise UsageError(f"--resume writes into its own folder; drop --out {str(out)!r}")
         if not Path(resume).is_dir():
