@@ -20,11 +20,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from harv_jax.env.config import EnvConfig
-from harv_jax.env.recovery import make_env
+from harv_jax.env.recovery import TerminationFlags, make_env
+from harv_jax.env.reward import tracking_errors
 from harv_jax.policy import resolve_policy
 
 TERMS = ("raw", "bonus_alpha", "bonus_beta", "bonus_mu", "action", "shaping", "terminal")
-REASONS = ("nonfinite", "speed", "alpha", "rates", "gamma", "altitude")  # recovery.TerminationFlags
+REASONS = TerminationFlags._fields
 
 
 def decompose(spec: str, dr: bool, runs: int, steps: int, seed: int) -> dict:
@@ -50,7 +51,7 @@ def decompose(spec: str, dr: bool, runs: int, steps: int, seed: int) -> dict:
         why0 = {r: jnp.asarray(False) for r in REASONS}
         carry0 = (obs, state, jnp.asarray(True), sums0, jnp.zeros((), jnp.int32), why0)
         (_, state, alive, sums, length, why), _ = jax.lax.scan(step, carry0, jax.random.split(k_steps, steps))
-        e_alpha = jnp.abs(state.wind[1] - state.target_rad[0])
+        e_alpha = jnp.abs(tracking_errors(state.wind, state.target_rad)[0])
         return {"sums": sums, "alive": alive, "length": length, "final_abs_e_alpha_rad": e_alpha, "why": why}
 
     out = jax.device_get(jax.jit(jax.vmap(episode))(jax.random.split(jax.random.key(seed), runs)))

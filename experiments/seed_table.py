@@ -32,19 +32,23 @@ COLUMNS = (  # (metric key, header, format)
     ("chatter_rad2", "chatter 1e-6 rad²", "{:.2f}"),
     ("t_recover_p50_s", "t_rec p50 s", "{:.1f}"),
 )
+FORMAT = {k: f for k, _, f in COLUMNS}
 SCALE = {"chatter_rad2": 1e6}
 
 
 def cell(key: str, value: float | None) -> str:
     if value is None or not np.isfinite(value):
         return "–"
-    fmt = dict((k, f) for k, _, f in COLUMNS)[key]
-    return fmt.format(value * SCALE.get(key, 1.0))
+    return FORMAT[key].format(value * SCALE.get(key, 1.0))
+
+
+def md_row(cells: list[str]) -> str:
+    return "| " + " | ".join(cells) + " |"
 
 
 def header(first: list[str]) -> list[str]:
     cols = first + [h for _, h, _ in COLUMNS]
-    return ["| " + " | ".join(cols) + " |", "|" + "---|" * len(first) + "---:|" * len(COLUMNS)]
+    return [md_row(cols), "|" + "---|" * len(first) + "---:|" * len(COLUMNS)]
 
 
 def group_of(runs_dir: str, preset: str) -> str:
@@ -58,24 +62,24 @@ def tables(files: list[Path]) -> str:
     smc_rows: set[tuple[str, ...]] = set()
     for f in files:
         d = json.loads(f.read_text())
-        smc = tuple(cell(k, d["smc"][k]) for k, _, _ in COLUMNS)
+        smc = tuple(cell(k, d["smc"][k]) for k in FORMAT)
         if smc not in smc_rows:  # the same initial states give the same SMC row: print it once
             smc_rows.add(smc)
-            lines.append("| " + " | ".join([f"SMC only ({f.name})", "smc", *smc]) + " |")
+            lines.append(md_row([f"SMC only ({f.name})", "smc", *smc]))
         for name, row in d["policies"].items():
             preset, seed, ctrl = name.split("/")
             label = f"{Path(d['runs_dir']).name}/{preset}/{seed}"
-            lines.append("| " + " | ".join([label, ctrl] + [cell(k, row[k]) for k, _, _ in COLUMNS]) + " |")
+            lines.append(md_row([label, ctrl] + [cell(k, row[k]) for k in FORMAT]))
             groups[(group_of(d["runs_dir"], preset), ctrl)].append(row)
     lines += ["", *header(["runs", "controller", "seeds"])]
     for (group, ctrl), rows in groups.items():
         cells = []
-        for k, _, _ in COLUMNS:
+        for k in FORMAT:
             v = np.array([np.nan if r[k] is None else r[k] for r in rows], float)
             ok = v[np.isfinite(v)]
             n = f" (n={ok.size})" if 0 < ok.size < v.size else ""  # a seed that never settles has no time
             cells.append(f"{cell(k, ok.mean())} ± {cell(k, ok.std())}{n}" if ok.size else "–")
-        lines.append("| " + " | ".join([group, ctrl, str(len(rows))] + cells) + " |")
+        lines.append(md_row([group, ctrl, str(len(rows))] + cells))
     return "\n".join(lines)
 
 
