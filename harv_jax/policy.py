@@ -239,27 +239,25 @@ def load(path: str | Path, seed: int = 0) -> Policy:
     return _load_npz(p)
 
 
-#: Policies shipped inside the package (``harv_jax/policies/<name>.npz``, model card ``MODEL_CARD.md``).
-SHIPPED = ("full", "partial")
-SHIPPED_PREFIX = "shipped"
+from harv_jax.policies import DEFAULT_POLICY_SPEC, DEFAULT_SHIPPED, SHIPPED, SHIPPED_PREFIX  # noqa: E402,F401
 
 
-def shipped_path(name: str = "full") -> Path:
-    """Path of a shipped policy: ``full`` (fully trained, the default) or ``partial``."""
+def shipped_path(name: str = DEFAULT_SHIPPED) -> Path:
+    """Path of a shipped policy: ``recovery`` (the default), ``paper-full`` or ``paper-partial``."""
     if name not in SHIPPED:
         raise UsageError(f"shipped policy {name!r} is unknown; allowed: {', '.join(SHIPPED)}")
     from importlib.resources import files
 
-    return Path(str(files("harv_jax.policies") / f"{name}.npz"))
+    return Path(str(files("harv_jax.policies") / f"{SHIPPED[name]}.npz"))
 
 
 def resolve_policy(spec: str | Path | None) -> Policy:
-    """Load a policy from a user's path, or ``None``/``"shipped"`` (the shipped fully trained policy), or
-    ``"shipped:full"``/``"shipped:partial"``. A path may end in ``@<seed>`` to pick a learner of a
-    multi-seed checkpoint (``ckpt_000010.msgpack@2``)."""
+    """Load a policy from a user's path, or ``None``/``"shipped"`` (the default shipped policy,
+    ``shipped:recovery``), or ``"shipped:<name>"`` (``recovery``, ``paper-full``, ``paper-partial``). A path
+    may end in ``@<seed>`` to pick a learner of a multi-seed checkpoint (``ckpt_000010.msgpack@2``)."""
     text = SHIPPED_PREFIX if spec is None else str(spec)
     if text == SHIPPED_PREFIX or text.startswith(SHIPPED_PREFIX + ":"):
-        name = text.partition(":")[2] or "full"
+        name = text.partition(":")[2] or DEFAULT_SHIPPED
         return load(shipped_path(name))
     path, sep, seed = text.rpartition("@")
     if sep and seed.isdigit():

@@ -18,6 +18,7 @@ import typer
 
 from harv_jax.commands.options import policy_option, zeta_option
 from harv_jax.errors import UsageError
+from harv_jax.policies import DEFAULT_POLICY_SPEC
 
 #: Fixed upset state of the second scenario (wind axes; ft/s, rad, rad/s, ft): a nose-high (alpha 46 deg),
 #: rolling, yawing, banked upset inside the paper's reset bounds.
@@ -146,7 +147,7 @@ def run_compare(
     write_tables(out_dir, rows)
     doc = {
         "command": "harv-jax " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
-        "controllers": controllers, "policy": policy or "shipped:full", "zeta_schedule": zeta,
+        "controllers": controllers, "policy": policy or DEFAULT_POLICY_SPEC, "zeta_schedule": zeta,
         "target_alpha_rad": target_alpha, "duration_s": duration, "spin_s": spin_s, "seed": seed,
         "dt_s": DT_S, "fixed_state": state, "rows": rows, "certificates": certificates,
     }  # fmt: skip

@@ -22,6 +22,7 @@ import typer
 
 from harv_jax.commands.options import policy_option, zeta_option
 from harv_jax.errors import UsageError
+from harv_jax.policies import DEFAULT_POLICY_SPEC
 
 MAX_POINTS_PER_AXIS = 1000
 DT_S = 0.01
@@ -174,7 +175,7 @@ def run_envelope_map(
         "grid": grid_description(grid), "runs_per_controller": grid.n_runs, "target_alpha_rad": target_alpha,
         "reference_rad": [target_alpha, 0.0, 0.0], "duration_s": n_steps * DT_S, "dt_s": DT_S, "seed": seed,
         "aircraft": "nominal", "devices": [str(d) for d in jax.local_devices()],
-        "policy": (policy or "shipped:full") if {"rl", "hybrid"} & set(controllers) else None,
+        "policy": (policy or DEFAULT_POLICY_SPEC) if {"rl", "hybrid"} & set(controllers) else None,
         "zeta_schedule": zeta if "hybrid" in controllers else None,
         "command": "harv-jax " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
         "controllers": {},

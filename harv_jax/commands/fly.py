@@ -13,6 +13,7 @@ import typer
 
 from harv_jax.commands.options import policy_option, zeta_option
 from harv_jax.errors import UsageError
+from harv_jax.policies import DEFAULT_POLICY_SPEC
 
 CONTROLLERS = ("smc", "rl", "hybrid")
 SCENARIOS = ("spin", "random")
@@ -377,7 +378,7 @@ def register(app: typer.Typer) -> None:
         res = run_fly(scenario, target_alpha, duration, seed, switching, spin_s, controller, policy, zeta)
         meta = {
             "controller": controller,
-            "policy": (policy or "shipped:full") if controller != "smc" else None,
+            "policy": (policy or DEFAULT_POLICY_SPEC) if controller != "smc" else None,
             "zeta_schedule": zeta if controller == "hybrid" else None,
             "switching": switching,
             "scenario": scenario,

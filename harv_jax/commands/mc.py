@@ -14,6 +14,7 @@ import typer
 
 from harv_jax.commands.options import policy_option, zeta_option
 from harv_jax.errors import UsageError
+from harv_jax.policies import DEFAULT_POLICY_SPEC
 
 KNOWN_CONTROLLERS = ("smc", "rl", "hybrid")
 MAX_RUNS = 1_000_000
@@ -139,7 +140,7 @@ def run_monte_carlo(
     summary: dict = {
         "runs": runs, "target_alpha_rad": target_alpha, "duration_s": n_steps * dt_s, "seed": seed,
         "randomize": randomize, "dt_s": dt_s,
-        "policy": (policy or "shipped:full") if {"rl", "hybrid"} & set(controllers) else None,
+        "policy": (policy or DEFAULT_POLICY_SPEC) if {"rl", "hybrid"} & set(controllers) else None,
         "zeta_schedule": zeta if "hybrid" in controllers else None,
         "devices": [str(d) for d in jax.local_devices()],
         "command": "harv-jax " + " ".join(shlex.quote(a) for a in sys.argv[1:]),

@@ -5,13 +5,14 @@ from __future__ import annotations
 import typer
 
 POLICY_HELP = (
-    "rl/hybrid policy: run folder, .npz, checkpoint[@seed], shipped:full (default), shipped:partial."
+    "rl/hybrid policy: run folder, .npz, checkpoint\\[@seed], shipped:recovery (default), "
+    "shipped:paper-full, shipped:paper-partial."
 )
 ZETA_HELP = "Hybrid zeta schedule: continuous, hysteresis (the paper's), always, never."
 
 
 def policy_option():
-    """``--policy`` (default None = the shipped fully trained policy)."""
+    """``--policy`` (default None = the default shipped policy, ``shipped:recovery``)."""
     return typer.Option(None, help=POLICY_HELP)
 
 

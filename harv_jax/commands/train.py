@@ -35,21 +35,22 @@ def build_config(
     return ppo_config.from_dict(changes, base=cfg, source="command line"), env_table
 
 
-def make_harv_env(env_table: dict[str, Any]) -> tuple[Any, Any]:
-    """(env, env_params) of the recovery env from a preset's ``[env]`` table; UsageError if a key is bad."""
-    import dataclasses
+def make_harv_env(env_table: dict[str, Any], spin_bank: Any = None) -> tuple[Any, Any]:
+    """(env, env_params) of the recovery env from a preset's env settings; UsageError if a key is bad.
 
-    from harv_jax.env import EnvConfig, default_params, make_env
+    ``env_table`` holds the ``[env]`` fields and the nested ``reward``/``randomization``/``spin``/``eval``
+    tables (``harv_jax.env.settings``). With spin resets on (``spin.reset_prob`` > 0) the spin bank is
+    ``spin_bank`` or, if None, made here from the ``[spin]`` table.
+    """
+    from harv_jax.env import make_env, settings
 
-    allowed = {f.name for f in dataclasses.fields(EnvConfig)}
-    unknown = sorted(set(env_table) - allowed)
-    if unknown:
-        raise UsageError(f"unknown env setting {unknown[0]!r}; allowed: {', '.join(sorted(allowed))}")
-    try:
-        env_config = EnvConfig(**env_table)
-    except (TypeError, ValueError) as e:
-        raise UsageError(f"bad env setting: {e}") from None
-    return make_env(env_config), default_params(env_config)
+    flat, nested = settings.split_tables(env_table)
+    env_config = settings.env_config(flat)
+    settings.spin_settings(nested["spin"])
+    settings.eval_settings(nested["eval"])
+    if spin_bank is None:
+        spin_bank = settings.build_spin_bank(env_config, nested)
+    return make_env(env_config), settings.env_params(env_config, nested, spin_bank)
 
 
 # ---------------------------------------------------------------------------------------------- outputs
@@ -60,7 +61,7 @@ def write_metrics_csv(path: Path, history: list[dict[str, Any]]) -> None:
     if not history:
         return
     scalar = ("period", "env_steps", "wall_s", "period_s")
-    names = [k for k in history[0] if k not in scalar]
+    names = list(dict.fromkeys(k for row in history for k in row if k not in scalar))  # eval rows add keys
     n_seeds = int(np.asarray(history[0][names[0]]).size) if names else 1
     header = list(scalar)
     for k in names:
@@ -162,8 +163,8 @@ def _nanstat(fn: Any, v: np.ndarray) -> float:
     return float(fn(v)) if v.size else math.nan
 
 
-def export_policies(out_dir: Path, state: Any, trainer: Any, cfg: Any, history: list[dict[str, Any]]) -> int:
-    """Write ``policy/policy_seed<i>.npz`` per seed and ``policy.npz``/``policy.stablehlo`` of the best."""
+def export_seed_policies(pdir: Path, state: Any, trainer: Any, cfg: Any, env_steps: int) -> list[Any]:
+    """Write ``pdir/policy_seed<i>.npz`` for every seed; returns the policies."""
     import jax
 
     from harv_jax import policy as policy_api
@@ -171,24 +172,101 @@ def export_policies(out_dir: Path, state: Any, trainer: Any, cfg: Any, history: 
     from harv_jax.ppo import config as ppo_config
 
     params, normalizer = jax.device_get((state.params, state.normalizer))
-    last = np.asarray(history[-1]["episode_return"], np.float64).reshape(-1) if history else np.zeros(1)
-    best = int(np.nanargmax(np.where(np.isfinite(last), last, -np.inf))) if np.any(np.isfinite(last)) else 0
-    pdir = out_dir / "policy"
+    pols = []
     for s in range(cfg.num_seeds):
-        meta = {
-            "seed": s,
-            "config": ppo_config.to_dict(cfg),
-            "normalize_observations": cfg.normalize_observations,
-            "env_steps": history[-1]["env_steps"] if history else 0,
-        }
+        meta = {"seed": s, "config": ppo_config.to_dict(cfg), "env_steps": env_steps,
+                "normalize_observations": cfg.normalize_observations}  # fmt: skip
         pol = make_policy(select_seed(params, s), select_seed(normalizer, s), trainer.networks,
                           cfg.normalize_observations, meta)  # fmt: skip
         policy_api.export_npz(pdir / f"policy_seed{s}.npz", pol)
-        if s == best:
-            policy_api.export_npz(pdir / "policy.npz", pol)
-            if policy_api.export_available():  # jax.export serialization needs flatbuffers
-                policy_api.export_stablehlo(pdir / "policy.stablehlo", pol)
+        pols.append(pol)
+    return pols
+
+
+def export_policies(out_dir: Path, state: Any, trainer: Any, cfg: Any, history: list[dict[str, Any]]) -> int:
+    """Write ``policy/policy_seed<i>.npz`` per seed and ``policy.npz``/``policy.stablehlo`` of the best."""
+    from harv_jax import policy as policy_api
+
+    last = np.asarray(history[-1]["episode_return"], np.float64).reshape(-1) if history else np.zeros(1)
+    best = int(np.nanargmax(np.where(np.isfinite(last), last, -np.inf))) if np.any(np.isfinite(last)) else 0
+    pdir = out_dir / "policy"
+    pols = export_seed_policies(pdir, state, trainer, cfg, history[-1]["env_steps"] if history else 0)
+    policy_api.export_npz(pdir / "policy.npz", pols[best])
+    if policy_api.export_available():  # jax.export serialization needs flatbuffers
+        policy_api.export_stablehlo(pdir / "policy.stablehlo", pols[best])
     return best
+
+
+def make_eval_hook(
+    trainer: Any,
+    cfg: Any,
+    env_params: Any,
+    env_table: dict[str, Any],
+    target_recovery: float | None,
+    out_dir: Path | None = None,
+) -> tuple[Any, str]:
+    """The period hook of evaluation during training (``[eval]`` table), or (None, "") when it is off.
+
+    Every ``eval.every`` periods (and at the last) every seed's deterministic policy flies the fixed batch of
+    ``harv_jax.evaluation.policy_eval`` RL-only; its recovery fractions and median recovery time go into the
+    period's row. With ``target_recovery`` training stops at the first evaluation where every seed recovers
+    at least that fraction (that period's checkpoint is written). With ``out_dir`` every evaluated period's
+    policies are kept as ``policy/period_<N>/policy_seed<s>.npz`` (a few kB each).
+    """
+    import dataclasses
+
+    import jax
+
+    from harv_jax.env import settings
+    from harv_jax.evaluation.policy_eval import make_eval_batch, make_policy_eval, summarize_eval
+    from harv_jax.ppo import config as ppo_config
+    from harv_jax.ppo import normalize as obs_norm
+    from harv_jax.ppo.networks import postprocess
+
+    ev = settings.eval_settings(settings.split_tables(env_table)[1]["eval"])
+    if target_recovery is not None and not ev.every:
+        ev = dataclasses.replace(ev, every=1)
+    if not ev.every:
+        return None, ""
+    batch = make_eval_batch(ev.upset_runs, ev.spin_runs, env_params.aircraft)
+
+    def act(params: Any, normalizer: Any, obs: jax.Array) -> jax.Array:
+        obs_in = obs_norm.normalize(normalizer, obs) if cfg.normalize_observations else obs
+        mean, _ = trainer.networks.policy(params, obs_in)
+        return postprocess(mean)
+
+    evaluate = jax.jit(jax.vmap(make_policy_eval(act, batch, ev.duration_s)))
+    n_periods = ppo_config.num_periods(cfg)
+    is_spin = jax.device_get(batch.is_spin)
+
+    def hook(p: int, state: Any) -> tuple[dict[str, Any], bool]:
+        if (p + 1) % ev.every and p + 1 != n_periods:
+            return {}, False
+        out = summarize_eval(jax.device_get(evaluate(state.params, state.normalizer)), is_spin)
+        stop = target_recovery is not None and bool(np.all(out["eval/recovered"] >= target_recovery))
+        if out_dir is not None:
+            steps = (p + 1) * ppo_config.steps_per_period(cfg)
+            export_seed_policies(out_dir / "policy" / f"period_{p + 1:04d}", state, trainer, cfg, steps)
+        return out, stop
+
+    desc = f"evaluation every {ev.every} period(s): {ev.upset_runs} upsets + {ev.spin_runs} spins, RL-only"
+    return hook, desc
+
+
+def save_spin_bank(out_dir: Path, env_table: dict[str, Any], env_params: Any) -> None:
+    """``spin_bank.npz`` in the run folder: the bank's states, deflections and provenance (if spin resets)."""
+    from harv_jax.env import settings
+
+    flat, nested = settings.split_tables(env_table)
+    if settings.spin_settings(nested["spin"]).reset_prob <= 0:
+        return
+    prov = settings.bank_provenance(settings.env_config(flat), nested)
+    np.savez(
+        out_dir / "spin_bank.npz",
+        x_wind=np.asarray(env_params.spin_states),
+        delta_rad=np.asarray(env_params.spin_delta_rad),
+        provenance=np.asarray(json.dumps(prov)),
+    )
 
 
 # ---------------------------------------------------------------------------------------------- command
@@ -201,12 +279,17 @@ def run_train(
     resume: Path | None,
     force: bool,
     init_policy: str | None = None,
+    target_recovery: float | None = None,
 ) -> dict[str, Any]:
     """Validate, build, train, write outputs; returns a summary dict. Raises UsageError on bad input.
 
     ``init_policy``: a policy spec (``shipped:partial``, a ``.npz`` or checkpoint path[@seed]) every seed
     starts from instead of a random initialization (fine-tuning; recorded in ``config.json``).
+    ``target_recovery``: stop at the first evaluation (``[eval]``) where every seed's RL-only recovery
+    fraction is at least this (evaluation then runs every period unless ``[eval] every`` says otherwise).
     """
+    if target_recovery is not None and not (math.isfinite(target_recovery) and 0 < target_recovery <= 1):
+        raise UsageError(f"--target-recovery {target_recovery} must be in (0, 1]")
     from harv_jax.ppo import checkpoint
     from harv_jax.ppo import config as ppo_config
 
@@ -252,7 +335,11 @@ def run_train(
         record = {"preset": preset or "smoke", "ppo": ppo_config.to_dict(cfg), "env": env_table}
         if init_policy is not None:
             record["init_policy"] = init_policy
+        if target_recovery is not None:
+            record["target_recovery"] = target_recovery
         (out_dir / "config.json").write_text(json.dumps(record, indent=2))
+        save_spin_bank(out_dir, env_table, env_params)
+    hook, eval_desc = make_eval_hook(trainer, cfg, env_params, env_table, target_recovery, out_dir)
     n_periods = ppo_config.num_periods(cfg)
     total = n_periods * ppo_config.steps_per_period(cfg)
     start_steps = 0
@@ -274,13 +361,19 @@ def run_train(
         TimeElapsedColumn(),
         TextColumn("ETA"),
         TimeRemainingColumn(),
-        TextColumn("return {task.fields[ret]}  recovered {task.fields[rec]}  |w|end {task.fields[omega]}"),
+        TextColumn(
+            "return {task.fields[ret]}  recovered {task.fields[rec]}  |w|end {task.fields[omega]}"
+            "  eval {task.fields[ev]}"
+        ),
         console=console,
         transient=False,
     )
     task = progress.add_task(
-        "train", total=total, completed=start_steps, sps="-", ret="-", rec="-", omega="-"
+        "train", total=total, completed=start_steps, sps="-", ret="-", rec="-", omega="-", ev="-"
     )
+    if eval_desc:
+        console.print(eval_desc)
+    last_eval = ["-"]
 
     def on_period(p: int, row: dict[str, Any]) -> None:
         history_box[0].append(row)
@@ -291,11 +384,17 @@ def run_train(
             "rec": _fmt(row, "episode/recovered"),
             "omega": _fmt(row, "episode/final_omega_radps"),
         }
+        if "eval/recovered" in row:
+            last_eval[0] = (f"recovered {_fmt(row, 'eval/recovered')} "
+                            f"(spin {_fmt(row, 'eval/recovered_spin')}), "
+                            f"t_rec {_fmt(row, 'eval/t_recover_median_s')} s")  # fmt: skip
+        fields["ev"] = last_eval[0]
         progress.update(task, completed=row["env_steps"], **fields)
         if not console.is_terminal:
             console.print(
                 f"period {row['period']}/{n_periods} steps {row['env_steps']:,} ({fields['sps']} steps/s) "
-                f"return {fields['ret']} recovered {fields['rec']} |w|end {fields['omega']}",
+                f"return {fields['ret']} recovered {fields['rec']} |w|end {fields['omega']} "
+                f"eval {fields['ev']}",
                 soft_wrap=True,
             )
         tb.write(row)
@@ -304,7 +403,7 @@ def run_train(
     with progress:
         result = run_training(
             key, env, env_params, cfg, run_dir=out_dir, resume=resume is not None, env_config=env_table,
-            progress_fn=on_period, trainer=trainer, init_policy=init,
+            progress_fn=on_period, trainer=trainer, init_policy=init, period_hook=hook,
         )  # fmt: skip
     tb.close()
     history = result.history
@@ -315,6 +414,15 @@ def run_train(
     best = export_policies(out_dir, result.state, result.trainer, cfg, history)
     summary = {"out": str(out_dir), "periods": len(history), "best_seed": best,
                "env_steps_per_seed": history[-1]["env_steps"] if history else 0}  # fmt: skip
+    evals = [row for row in history if "eval/recovered" in row]
+    if evals:
+        summary["eval"] = {k: np.asarray(v, np.float64).reshape(-1).tolist() for k, v in evals[-1].items()
+                           if k.startswith("eval/")}  # fmt: skip
+        summary["eval"]["env_steps"] = evals[-1]["env_steps"]
+        summary["eval"]["wall_s"] = evals[-1]["wall_s"]
+        if target_recovery is not None:
+            reached = [r for r in evals if np.all(np.asarray(r["eval/recovered"]) >= target_recovery)]
+            summary["target_reached_at_env_steps"] = reached[0]["env_steps"] if reached else None
     for k in ("episode_return", "episode/recovered", "episode/final_omega_radps", "episode/terminated"):
         if history and k in history[-1]:
             first = np.asarray(history[0][k], np.float64).reshape(-1)
@@ -350,11 +458,15 @@ def register(app: typer.Typer) -> None:
             None,
             help="Start every seed from this policy (shipped:full|partial, or a path[@seed]): fine-tuning.",
         ),
+        target_recovery: float = typer.Option(
+            None,
+            help="Stop once every seed's RL-only recovery fraction in the [eval] batch reaches this (0-1].",
+        ),
     ) -> None:
         """Train PPO policies (several seeds at once) on the spin/upset recovery env."""
         overrides = {"total_steps": steps, "num_envs": num_envs, "unroll": unroll, "epochs": epochs,
                      "minibatches": minibatches, "lr": lr, "num_seeds": seeds, "seed": seed}  # fmt: skip
-        summary = run_train(preset, overrides, out, resume, force, init_policy)
+        summary = run_train(preset, overrides, out, resume, force, init_policy, target_recovery)
         ret = summary.get("episode_return", {})
         rec = summary.get("episode/recovered", {})
         typer.echo(

@@ -29,7 +29,8 @@ from brax.envs.base import Env as BraxEnvBase
 from brax.envs.base import State
 
 from harv_jax.env.config import ACTION_SIZE, OBSERVATION_SIZE, EnvConfig, EnvParams
-from harv_jax.env.recovery import make_env
+from harv_jax.env.recovery import TerminationFlags, make_env
+from harv_jax.env.reward import RewardTerms
 
 
 class HarvBraxEnv(BraxEnvBase):
@@ -80,12 +81,8 @@ class HarvBraxEnv(BraxEnvBase):
         k_reset, k_stream = jax.random.split(rng)
         obs, es = self._core.reset(k_reset, self._params)
         zero = jnp.zeros((), dtype=obs.dtype)
-        zeros_terms = dict.fromkeys(
-            ("phase1", "phase2", "blend", "raw", "bonus_alpha", "bonus_beta", "bonus_mu", "action",
-             "shaping", "terminal", "total"),
-            zero,
-        )  # fmt: skip
-        zeros_flags = dict.fromkeys(("nonfinite", "speed", "alpha", "rates", "gamma", "altitude"), zero)
+        zeros_terms = dict.fromkeys(RewardTerms._fields, zero)
+        zeros_flags = dict.fromkeys(TerminationFlags._fields, zero)
         return State(
             pipeline_state=es,
             obs=obs,

@@ -119,6 +119,18 @@ class RewardParams:
         discount: PBRS Gamma (paper: the PPO discount, 0.99).
         shaping_weight: multiplier of the PBRS term (1 = paper, 0 disables shaping).
         terminal_reward: reward on leaving the envelope (paper -1000).
+        bonus_shape: 0 = the paper's indicator bonuses, 1 = smooth bands bonus_i exp(-(e_i/w_i)^2).
+        bonus_width_rad: [3] band widths w_i of the smooth bonuses (alpha, beta, mu), rad.
+        w_track: [3] weights of the dense per-channel terms -w_i min(|e_i| / track_clip_i, 1) (paper 0).
+        track_clip_rad: [3] errors at which the dense terms saturate, rad.
+        recovered_bonus: paid on every step whose state meets the recovery criterion (paper 0).
+        recovered_tol: [4] tolerances of that criterion: |e_alpha|, |e_beta|, |e_mu| (rad), ||omega|| (rad/s).
+        action_rate_weight: weight of -sum_i (a_i - a_prev_i)^2 on the normalized action (paper 0).
+        raw_weight: multiplier of the blended phase rewards r_raw (paper 1): below 1 the rate damping
+            weighs less against tracking.
+
+    The fields after ``terminal_reward`` are ours (``experiments/reward_ablation``); their defaults leave the
+    paper's reward unchanged bit for bit.
     """
 
     w_p1: jnp.ndarray
@@ -134,6 +146,19 @@ class RewardParams:
     discount: jnp.ndarray
     shaping_weight: jnp.ndarray
     terminal_reward: jnp.ndarray
+    bonus_shape: jnp.ndarray
+    bonus_width_rad: jnp.ndarray
+    w_track: jnp.ndarray
+    track_clip_rad: jnp.ndarray
+    recovered_bonus: jnp.ndarray
+    recovered_tol: jnp.ndarray
+    action_rate_weight: jnp.ndarray
+    raw_weight: jnp.ndarray
+
+
+#: Tolerances of the recovery criterion (|e_alpha|, |e_beta|, |e_mu| rad; ||omega|| rad/s): 2 deg, 1 deg,
+#: 2 deg, 0.17 rad/s, the Monte Carlo's criterion (``harv_jax.evaluation.metrics.default_criterion``).
+RECOVERED_TOL = np.array([2.0 * RAD_PER_DEG, 1.0 * RAD_PER_DEG, 2.0 * RAD_PER_DEG, 0.17])
 
 
 def paper_reward_params(discount: float = 0.99, dtype=None) -> RewardParams:
@@ -146,6 +171,9 @@ def paper_reward_params(discount: float = 0.99, dtype=None) -> RewardParams:
         w_p1=f(0.3), w_p21=f(0.3), w_p22=f(0.05), k_blend=f(10.0), omega_th_radps=f(0.17),
         bonus_alpha=f(5.0), bonus_beta=f(3.0), bonus_mu=f(3.0), bonus_tol_rad=f(0.017),
         action_weight=f(1.0), discount=f(discount), shaping_weight=f(1.0), terminal_reward=f(-1000.0),
+        bonus_shape=f(0.0), bonus_width_rad=f([0.017, 0.017, 0.017]), w_track=f([0.0, 0.0, 0.0]),
+        track_clip_rad=f([0.5, 0.5, 0.5]), recovered_bonus=f(0.0), recovered_tol=f(RECOVERED_TOL),
+        action_rate_weight=f(0.0), raw_weight=f(1.0),
     )  # fmt: skip
 
 
@@ -300,6 +328,8 @@ class EnvParams:
         envelope: termination envelope.
         h0_ft: initial altitude of uniform resets, ft.
         spin_states: [K, 10] wind-axis spin-entry states (their own h is used).
+        spin_delta_rad: [K, 3] surface deflections of each spin state (the pro-spin controls of a developed
+            spin; an episode that starts from ``spin_states[k]`` starts with these deflections).
         spin_reset_prob: probability that a reset starts from a spin-entry state (default 0).
         spin_perturb: [10] half-widths of the uniform perturbation of a spin-entry state.
     """
@@ -311,6 +341,7 @@ class EnvParams:
     envelope: EnvelopeParams
     h0_ft: jnp.ndarray
     spin_states: jnp.ndarray
+    spin_delta_rad: jnp.ndarray
     spin_reset_prob: jnp.ndarray
     spin_perturb: jnp.ndarray
 
@@ -352,6 +383,7 @@ def default_params(config: EnvConfig | None = None, dtype=None) -> EnvParams:
         envelope=paper_envelope_params(config.h_floor_ft, dtype),
         h0_ft=f(config.h0_ft),
         spin_states=f(spin[None, :]),
+        spin_delta_rad=f(np.zeros((1, 3))),
         spin_reset_prob=f(0.0),
         spin_perturb=f(DEFAULT_SPIN_PERTURB),
     )

@@ -41,7 +41,8 @@ Retraces: pass strongly typed arrays (e.g. ``jnp.full((n, 3), 0.2, jnp.float32)`
 Reset: with probability ``spin_reset_prob`` one of ``spin_states`` (uniform index) plus a uniform
 perturbation, else a uniform draw over the paper's reset bounds at altitude ``h0_ft`` (chi = 0). Target
 alpha_d ~ U(alpha_d_low, alpha_d_high), beta_d, mu_d fixed. Deflections and the delay buffer start at 0
-rad (neutral surfaces), the gust in its stationary distribution.
+rad (neutral surfaces; a spin reset starts at that spin state's deflections), the gust in its stationary
+distribution.
 """
 
 from __future__ import annotations
@@ -136,6 +137,11 @@ def action_to_command(action: jnp.ndarray, u_min_rad: jnp.ndarray, u_max_rad: jn
     return u_min_rad + 0.5 * (action + 1.0) * (u_max_rad - u_min_rad)
 
 
+def command_to_action(cmd_rad: jnp.ndarray, u_min_rad: jnp.ndarray, u_max_rad: jnp.ndarray) -> jnp.ndarray:
+    """Inverse of :func:`action_to_command`: deflections [3], rad -> normalized action [3]."""
+    return 2.0 * (cmd_rad - u_min_rad) / (u_max_rad - u_min_rad) - 1.0
+
+
 def clean_observation(x_wind: jnp.ndarray, target_rad: jnp.ndarray) -> jnp.ndarray:
     """[11] observation of a wind-axis state and target without noise or clipping."""
     return jnp.concatenate([x_wind[:NUM_MEASURED], target_rad])
@@ -203,8 +209,8 @@ def make_env(config: EnvConfig | None = None) -> Env:
     n_reset_u = n_init_u + ((randomize.NUM_EPISODE_UNIFORMS + n_normal_u) if dr else 0)
     n_step_u = n_normal_u if dr else 0
 
-    def _initial_wind(u01: jnp.ndarray, params: EnvParams) -> jnp.ndarray:
-        """Initial wind-axis state [10] from ``n_init_u - 1`` U(0, 1) draws."""
+    def _initial_wind(u01: jnp.ndarray, params: EnvParams) -> tuple[jnp.ndarray, jnp.ndarray]:
+        """Initial wind-axis state [10] and deflections [3] from ``n_init_u - 1`` U(0, 1) draws."""
         rp = params.reset
         x_uniform = jnp.concatenate(
             [rp.low + (rp.high - rp.low) * u01[:8], 0.0 * u01[:1], params.h0_ft[None]]
@@ -214,8 +220,9 @@ def make_env(config: EnvConfig | None = None) -> Env:
         x_spin = params.spin_states[idx] + params.spin_perturb * (2.0 * u01[9:19] - 1.0)
         use_spin = u01[19] < params.spin_reset_prob
         x0 = jnp.where(use_spin, x_spin, x_uniform)
+        delta0 = jnp.where(use_spin, params.spin_delta_rad[idx], jnp.zeros_like(params.spin_delta_rad[idx]))
         # canonical angles so that the observation equals to_wind(from_wind(x0))
-        return x0.at[6].set(wrap_angle_rad(x0[6])).at[8].set(wrap_angle_rad(x0[8]))
+        return x0.at[6].set(wrap_angle_rad(x0[6])).at[8].set(wrap_angle_rad(x0[8])), delta0
 
     def _observe(noise8: jnp.ndarray | None, x_wind: jnp.ndarray, target_rad: jnp.ndarray, ep: EpisodeParams):
         obs = clean_observation(x_wind, target_rad)
@@ -234,8 +241,9 @@ def make_env(config: EnvConfig | None = None) -> Env:
         target: jnp.ndarray | None = None,
     ) -> tuple[jnp.ndarray, EnvState]:
         dtype = u01.dtype
+        delta0 = jnp.zeros((3,), dtype=dtype)
         if x0 is None:
-            x0 = _initial_wind(u01[: n_init_u - 1], params)
+            x0, delta0 = _initial_wind(u01[: n_init_u - 1], params)
         else:
             x0 = jnp.asarray(x0, dtype=dtype)
             x0 = x0.at[6].set(wrap_angle_rad(x0[6])).at[8].set(wrap_angle_rad(x0[8]))
@@ -260,8 +268,8 @@ def make_env(config: EnvConfig | None = None) -> Env:
         state = EnvState(
             aircraft=from_wind(x0),
             wind=x0,
-            delta_rad=jnp.zeros((3,), dtype=dtype),
-            cmd_buffer_rad=jnp.zeros((n_buf, 3), dtype=dtype),
+            delta_rad=delta0,
+            cmd_buffer_rad=jnp.broadcast_to(delta0, (n_buf, 3)),
             gust_fps=gust,
             target_rad=target,
             step=jnp.zeros((), dtype=jnp.int32),
@@ -304,8 +312,9 @@ def make_env(config: EnvConfig | None = None) -> Env:
         terminated = flags.any
         t = state.step + 1
         truncated = (t >= config.episode_steps) & ~terminated
+        a_prev = command_to_action(state.cmd_buffer_rad[0], ac.u_min_rad, ac.u_max_rad)
         terms, pot_next = reward.reward_terms(
-            x, state.target_rad, a, state.potential, terminated, params.reward
+            x, state.target_rad, a, state.potential, terminated, params.reward, a_prev
         )
         obs = _observe(noise8, x, state.target_rad, ep)
         new_state = state.replace(

@@ -15,7 +15,17 @@
     bonus    = +5 [|e_alpha| < 0.017] + 3 [|e_beta| < 0.017] + 3 [|e_mu| < 0.017]
     action   = -sum_i a_i^2          (a = the normalized action in [-1, 1]^3)
     shaping  = Gamma sigma_{t+1} - sigma_t
-    reward   = r_raw + bonus + action + shaping                        (non-terminal step)
+    reward   = r_raw + bonus + action + shaping                        (non-terminal step, paper)
+
+Our additions (``RewardParams`` fields after ``terminal_reward``; at their defaults the reward is the
+paper's bit for bit, ``tests/test_reward.py``):
+
+    bonus_i     = bonus_i exp(-(e_i / w_i)^2)            when bonus_shape = 1 (smooth bands)
+    dense_i     = -w_track_i min(|e_i| / track_clip_i, 1)   (clipped L1 per channel, Dally & van Kampen)
+    recovered   = +recovered_bonus [all of |e_alpha|, |e_beta|, |e_mu|, ||omega|| below recovered_tol]
+    action_rate = -action_rate_weight sum_i (a_i - a_prev_i)^2
+    r_raw       = raw_weight ((1 - eps) r_phase1 + eps r_phase2)     (paper: raw_weight = 1)
+    reward      = paper reward + dense + recovered + action_rate     (non-terminal step)
     reward   = terminal_reward + (Gamma * 0 - sigma_t)                 (terminating step)
 
 The paper lists the bonuses and the action penalty as "Additional Reward" next to the blended phases, so
@@ -54,6 +64,11 @@ class RewardTerms(NamedTuple):
     action: jnp.ndarray
     shaping: jnp.ndarray
     terminal: jnp.ndarray
+    dense_alpha: jnp.ndarray
+    dense_beta: jnp.ndarray
+    dense_mu: jnp.ndarray
+    recovered: jnp.ndarray
+    action_rate: jnp.ndarray
     total: jnp.ndarray
 
 
@@ -109,10 +124,32 @@ def raw(pqr_radps: jnp.ndarray, e_alpha_rad: jnp.ndarray, params: RewardParams) 
 
 
 def bonuses(errors_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
-    """[bonus_alpha, bonus_beta, bonus_mu]: each paid when its |error| < bonus_tol_rad (strict)."""
+    """[bonus_alpha, bonus_beta, bonus_mu]: the paper's (each paid when its |error| < bonus_tol_rad, strict)
+    or, when ``bonus_shape`` = 1, smooth bands bonus_i exp(-(e_i / bonus_width_i)^2)."""
     inside = jnp.abs(errors_rad) < params.bonus_tol_rad
     amounts = jnp.stack([params.bonus_alpha, params.bonus_beta, params.bonus_mu])
-    return jnp.where(inside, amounts, jnp.zeros_like(amounts))
+    indicator = jnp.where(inside, amounts, jnp.zeros_like(amounts))
+    smooth = amounts * jnp.exp(-jnp.square(errors_rad / params.bonus_width_rad))
+    return jnp.where(params.bonus_shape > 0.5, smooth, indicator)
+
+
+def dense_tracking(errors_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
+    """[3] dense per-channel terms -w_track_i min(|e_i| / track_clip_i, 1)."""
+    return -params.w_track * jnp.minimum(jnp.abs(errors_rad) / params.track_clip_rad, 1.0)
+
+
+def recovered_term(errors_rad: jnp.ndarray, pqr_radps: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
+    """+recovered_bonus when |e_alpha|, |e_beta|, |e_mu| and ||omega|| are all below ``recovered_tol``."""
+    inside = jnp.all(jnp.abs(errors_rad) < params.recovered_tol[:3]) & (
+        jnp.sqrt(omega_norm_sq(pqr_radps)) < params.recovered_tol[3]
+    )
+    return jnp.where(inside, params.recovered_bonus, jnp.zeros_like(params.recovered_bonus))
+
+
+def action_rate_penalty(action: jnp.ndarray, action_prev: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
+    """-action_rate_weight * sum_i (a_i - a_prev_i)^2 of the normalized actions [3]."""
+    d = action - action_prev
+    return -params.action_rate_weight * jnp.sum(d * d, axis=-1)
 
 
 def action_penalty(action: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
@@ -142,6 +179,7 @@ def reward_terms(
     potential_prev: jnp.ndarray,
     terminated: jnp.ndarray,
     params: RewardParams,
+    action_prev: jnp.ndarray | None = None,
 ) -> tuple[RewardTerms, jnp.ndarray]:
     """All reward terms of one step and the potential of the new state.
 
@@ -152,6 +190,7 @@ def reward_terms(
         potential_prev: sigma_t of the state the step started from.
         terminated: bool, the step left the envelope (s_{t+1} is absorbing, sigma = 0).
         params: reward weights.
+        action_prev: [3] normalized action of the previous step (default: ``action``, no rate penalty).
 
     Returns:
         (RewardTerms, sigma_{t+1}); sigma_{t+1} is the potential of x_wind (not zeroed on termination;
@@ -163,7 +202,7 @@ def reward_terms(
     eps = blend(jnp.sqrt(omega_norm_sq(pqr)), params)
     r1 = phase1(pqr, params)
     r2 = phase2(e_alpha, pqr, params)
-    r_raw = (1.0 - eps) * r1 + eps * r2
+    r_raw = params.raw_weight * ((1.0 - eps) * r1 + eps * r2)  # raw_weight 1 (paper): x * 1.0 == x
     bonus = bonuses(errors, params)
     r_action = action_penalty(action, params)
     pot_next = potential(e_alpha, pqr, params)
@@ -174,8 +213,12 @@ def reward_terms(
     def paid(v):
         return jnp.where(terminated, zero, v)
 
+    dense = dense_tracking(errors, params)
+    r_recovered = recovered_term(errors, pqr, params)
+    r_rate = action_rate_penalty(action, action if action_prev is None else action_prev, params)
     r_terminal = jnp.where(terminated, params.terminal_reward, zero)
-    performance = r_raw + jnp.sum(bonus) + r_action
+    # the paper's sum first, our terms added after it: zero weights leave it bit for bit
+    performance = (r_raw + jnp.sum(bonus) + r_action) + (jnp.sum(dense) + r_recovered + r_rate)
     total = jnp.where(terminated, r_terminal, performance) + r_shaping
     terms = RewardTerms(
         phase1=paid(r1),
@@ -188,6 +231,11 @@ def reward_terms(
         action=paid(r_action),
         shaping=r_shaping,
         terminal=r_terminal,
+        dense_alpha=paid(dense[0]),
+        dense_beta=paid(dense[1]),
+        dense_mu=paid(dense[2]),
+        recovered=paid(r_recovered),
+        action_rate=paid(r_rate),
         total=total,
     )
     return terms, pot_next

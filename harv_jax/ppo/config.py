@@ -1,12 +1,14 @@
 """PPO configuration: a frozen dataclass, presets from ``experiments/presets/*.toml``, validation.
 
-A preset file has a ``[ppo]`` table (fields of :class:`PPOConfig`) and an optional ``[env]`` table that is
-passed to the environment's config unchanged. The presets are edited in ``experiments/presets`` and shipped
-as package data in ``harv_jax/ppo/presets`` (an identical copy, checked by a test), so that a non-editable
-install finds them too: a name is looked up in the checkout's ``experiments/presets`` first (when the
-package runs from a source tree) and then in the package data. Every bad value raises
-:class:`harv_jax.errors.UsageError` with a one-line message naming the value and what is allowed. Derived
-quantities (updates, periods, batch sizes) are computed by functions and never written back into the config.
+A preset file has a ``[ppo]`` table (fields of :class:`PPOConfig`), an optional ``[env]`` table that is
+passed to the environment's config, and optional ``[reward]``, ``[randomization]``, ``[spin]`` and
+``[eval]`` tables, returned nested inside the env settings (``harv_jax.env.settings`` validates them). The
+presets are edited in ``experiments/presets`` and shipped as package data in ``harv_jax/ppo/presets`` (an
+identical copy, checked by a test), so that a non-editable install finds them too: a name is looked up in
+the checkout's ``experiments/presets`` first (when the package runs from a source tree) and then in the
+package data. Every bad value raises :class:`harv_jax.errors.UsageError` with a one-line message naming the
+value and what is allowed. Derived quantities (updates, periods, batch sizes) are computed by functions and
+never written back into the config.
 """
 
 from __future__ import annotations
@@ -182,11 +184,19 @@ def load_preset(name: str) -> tuple[PPOConfig, dict[str, Any]]:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as e:
         raise UsageError(f"preset {str(path)!r} is not valid TOML: {e}") from None
-    unknown = set(data) - {"ppo", "env", "description"}
+    nested = ("reward", "randomization", "spin", "eval")
+    unknown = set(data) - {"ppo", "env", "description", *nested}
     if unknown:
-        raise UsageError(f"preset {str(path)!r} has unknown tables {sorted(unknown)}; allowed: ppo, env")
+        raise UsageError(
+            f"preset {str(path)!r} has unknown tables {sorted(unknown)}; "
+            f"allowed: ppo, env, {', '.join(nested)}"
+        )
     cfg = from_dict(data.get("ppo", {}), source=f"preset {path.name}")
-    return cfg, dict(data.get("env", {}))
+    env = dict(data.get("env", {}))
+    for name in nested:  # stored inside the env settings (checkpoints keep them for --resume)
+        if name in data:
+            env[name] = dict(data[name])
+    return cfg, env
 
 
 # ------------------------------------------------------------------------------------------ derived values

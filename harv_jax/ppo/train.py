@@ -594,6 +594,7 @@ def run_training(
     episode_metrics_fn: Callable[[dict[str, Any]], dict[str, jax.Array]] | None = None,
     trainer: Trainer | None = None,
     init_policy: tuple[PPOParams, obs_norm.RunningStats] | None = None,
+    period_hook: Callable[[int, TrainingState], tuple[dict[str, Any], bool]] | None = None,
 ) -> TrainResult:
     """Host loop: init or resume, run periods, call ``progress_fn``, checkpoint every K periods and last.
 
@@ -614,6 +615,9 @@ def run_training(
             functions; ``devices`` and ``episode_metrics_fn`` are then ignored).
         init_policy: (params, normalizer) of one policy every seed starts from (:func:`warm_start`);
             ignored on resume (the checkpoint has the state).
+        period_hook: called after each period as ``period_hook(period_index, state)``; returns (entries
+            added to that period's history row, e.g. evaluation metrics; stop: True ends training after this
+            period's checkpoint, which is then always written).
 
     Returns:
         A :class:`TrainResult`.
@@ -655,11 +659,17 @@ def run_training(
             "period_s": dt,
             **{k: np.asarray(v) for k, v in metrics.items()},
         }
+        stop = False
+        if period_hook is not None:
+            extra, stop = period_hook(p, state)
+            row.update(extra)
         history.append(row)
         if progress_fn is not None:
             progress_fn(p, row)
-        if ckpt_dir is not None and ((p + 1) % cfg.checkpoint_every == 0 or p + 1 == last):
+        if ckpt_dir is not None and ((p + 1) % cfg.checkpoint_every == 0 or p + 1 == last or stop):
             checkpoint.save(ckpt_dir, state, cfg, period=p + 1, history=history, env_config=env_config or {})
+        if stop:
+            break
     return TrainResult(state, history, compile_s, trainer)
 
 

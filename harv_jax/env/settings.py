@@ -1,0 +1,279 @@
+"""A training preset's environment: its ``[env]``, ``[reward]``, ``[randomization]``, ``[spin]`` tables.
+
+A preset's ``[env]`` table sets :class:`EnvConfig` (static); the other tables are stored inside the env
+settings dict as nested tables (``{"episode_steps": 3000, "reward": {...}, "spin": {...}}``), so that a
+checkpoint's stored env settings rebuild the same environment on resume. Every value is checked here: a bad
+key or a value out of its range raises :class:`UsageError` naming the key and what is allowed.
+
+- ``[reward]``: any field of :class:`RewardParams` (traced: changing it does not recompile). Scalars, or
+  lists of 3 (per channel alpha, beta, mu) for ``bonus_width_rad``, ``w_track``, ``track_clip_rad`` and
+  of 4 for ``recovered_tol``.
+- ``[randomization]``: any field of :class:`RandomizationParams` (switches and ranges; only read when
+  ``domain_randomization`` is on).
+- ``[spin]``: ``reset_prob`` (probability that an episode starts in a developed spin from the bank),
+  ``bank_size``, ``spin_s_min``/``spin_s_max`` (time flown in the spin), ``bank_seed``,
+  ``randomize_aircraft`` (draw the bank's aircraft with the mass/inertia/aero ranges).
+- ``[eval]``: evaluation during training (read by ``harv-jax train``): ``every`` (periods), ``upset_runs``,
+  ``spin_runs``, ``duration_s``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import jax.numpy as jnp
+import numpy as np
+
+from harv_jax.env.config import (
+    EnvConfig,
+    EnvParams,
+    RandomizationParams,
+    RewardParams,
+    default_params,
+    strip_weak_type,
+)
+from harv_jax.errors import UsageError
+
+#: Nested tables of the env settings and what they hold.
+TABLES = ("reward", "randomization", "spin", "eval")
+
+#: Allowed range and length (None: scalar) of every reward field.
+REWARD_RANGES: dict[str, tuple[float, float, int | None]] = {
+    "w_p1": (0.0, 100.0, None),
+    "w_p21": (0.0, 100.0, None),
+    "w_p22": (0.0, 100.0, None),
+    "k_blend": (0.0, 1000.0, None),
+    "omega_th_radps": (0.0, 100.0, None),
+    "bonus_alpha": (0.0, 1000.0, None),
+    "bonus_beta": (0.0, 1000.0, None),
+    "bonus_mu": (0.0, 1000.0, None),
+    "bonus_tol_rad": (0.0, math.pi, None),
+    "action_weight": (0.0, 1000.0, None),
+    "discount": (0.0, 1.0, None),
+    "shaping_weight": (0.0, 1000.0, None),
+    "terminal_reward": (-1e7, 0.0, None),
+    "bonus_shape": (0.0, 1.0, None),
+    "bonus_width_rad": (1e-6, math.pi, 3),
+    "w_track": (0.0, 1000.0, 3),
+    "track_clip_rad": (1e-6, 2.0 * math.pi, 3),
+    "recovered_bonus": (0.0, 1000.0, None),
+    "recovered_tol": (1e-6, 10.0, 4),
+    "action_rate_weight": (0.0, 1000.0, None),
+    "raw_weight": (0.0, 100.0, None),
+}
+#: Allowed range of the randomization ranges (switches are booleans).
+RANDOMIZATION_RANGES: dict[str, tuple[float, float]] = {
+    "mass_frac": (0.0, 0.5),
+    "inertia_frac": (0.0, 0.5),
+    "aero_damping_frac": (0.0, 0.9),
+    "aero_control_frac": (0.0, 0.9),
+    "aero_static_frac": (0.0, 0.9),
+    "aero_basic_frac": (0.0, 0.9),
+    "gust_std_max_fps": (0.0, 100.0),
+    "gust_tau_min_s": (0.01, 100.0),
+    "gust_tau_max_s": (0.01, 100.0),
+    "delay_max_steps": (0.0, 100.0),
+}
+
+
+@dataclass(frozen=True)
+class SpinSettings:
+    """The ``[spin]`` table (static: the bank size sets a shape)."""
+
+    reset_prob: float = 0.0  # probability that an episode starts in a developed spin
+    bank_size: int = 256  # number of bank states (drawn once per run)
+    spin_s_min: float = 15.0  # time flown in the spin, s: U(min, max)
+    spin_s_max: float = 30.0
+    bank_seed: int = 0  # PRNG seed of the bank (independent of the training seed)
+    randomize_aircraft: bool = True  # bank aircraft drawn with the mass/inertia/aero ranges
+
+
+@dataclass(frozen=True)
+class EvalSettings:
+    """The ``[eval]`` table: evaluation during training (0 runs or every = 0: off)."""
+
+    every: int = 0  # periods between evaluations (0: never)
+    upset_runs: int = 128  # reset-bound states (as ``harv-jax mc``)
+    spin_runs: int = 16  # developed spins (the nominal scenario first)
+    duration_s: float = 60.0  # length of each run, s
+
+
+def _number(where: str, v: Any) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise UsageError(f"{where} = {v!r} must be a finite number")
+    return float(v)
+
+
+def _check_range(where: str, v: Any, lo: float, hi: float) -> None:
+    _number(where, v)
+    if not lo <= v <= hi:
+        raise UsageError(f"{where} = {v!r} is outside the allowed range [{lo:g}, {hi:g}]")
+
+
+def _dataclass_from_table(cls: type, table: dict[str, Any], name: str) -> Any:
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    for k in table:
+        if k not in fields:
+            raise UsageError(f"unknown [{name}] setting {k!r}; allowed: {', '.join(fields)}")
+    out = {}
+    for k, v in table.items():
+        default = fields[k].default
+        where = f"{name}.{k}"
+        if isinstance(default, bool):
+            if not isinstance(v, bool):
+                raise UsageError(f"{where} = {v!r} must be true or false")
+        elif isinstance(default, int):
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                raise UsageError(f"{where} = {v!r} must be a non-negative integer")
+        else:
+            v = _number(where, v)
+        out[k] = v
+    return cls(**out)
+
+
+def spin_settings(table: dict[str, Any] | None) -> SpinSettings:
+    """Validated ``[spin]`` table."""
+    s = _dataclass_from_table(SpinSettings, table or {}, "spin")
+    _check_range("spin.reset_prob", s.reset_prob, 0.0, 1.0)
+    _check_range("spin.bank_size", s.bank_size, 1, 65_536)
+    _check_range("spin.spin_s_min", s.spin_s_min, 1.0, 120.0)
+    _check_range("spin.spin_s_max", s.spin_s_max, s.spin_s_min, 120.0)
+    return s
+
+
+def eval_settings(table: dict[str, Any] | None) -> EvalSettings:
+    """Validated ``[eval]`` table."""
+    s = _dataclass_from_table(EvalSettings, table or {}, "eval")
+    _check_range("eval.upset_runs", s.upset_runs, 0, 100_000)
+    _check_range("eval.spin_runs", s.spin_runs, 0, 10_000)
+    _check_range("eval.duration_s", s.duration_s, 11.0, 600.0)
+    if s.every and s.upset_runs + s.spin_runs == 0:
+        raise UsageError("eval.every > 0 needs eval.upset_runs + eval.spin_runs >= 1")
+    return s
+
+
+def reward_params(table: dict[str, Any] | None, base: RewardParams) -> RewardParams:
+    """``base`` with the ``[reward]`` table's values (validated)."""
+    changes = {}
+    for k, v in (table or {}).items():
+        if k not in REWARD_RANGES:
+            raise UsageError(f"unknown [reward] setting {k!r}; allowed: {', '.join(REWARD_RANGES)}")
+        lo, hi, n = REWARD_RANGES[k]
+        if n is None:
+            _check_range(f"reward.{k}", v, lo, hi)
+        else:
+            if not isinstance(v, list | tuple) or len(v) != n:
+                raise UsageError(f"reward.{k} = {v!r} must be a list of {n} numbers")
+            for i, x in enumerate(v):
+                _check_range(f"reward.{k}[{i}]", x, lo, hi)
+        old = getattr(base, k)
+        changes[k] = jnp.asarray(v, dtype=old.dtype).reshape(old.shape)
+    return base.replace(**changes)
+
+
+def randomization_params(table: dict[str, Any] | None, base: RandomizationParams) -> RandomizationParams:
+    """``base`` with the ``[randomization]`` table's values (validated)."""
+    fields = [f.name for f in dataclasses.fields(RandomizationParams)]
+    changes = {}
+    for k, v in (table or {}).items():
+        if k not in fields:
+            raise UsageError(f"unknown [randomization] setting {k!r}; allowed: {', '.join(fields)}")
+        old = getattr(base, k)
+        if k.endswith("_on"):
+            if not isinstance(v, bool):
+                raise UsageError(f"randomization.{k} = {v!r} must be true or false")
+        elif k == "noise_std_max":
+            if not isinstance(v, list | tuple) or len(v) != old.shape[0]:
+                raise UsageError(f"randomization.{k} = {v!r} must be a list of {old.shape[0]} numbers")
+            for i, x in enumerate(v):
+                _check_range(f"randomization.{k}[{i}]", x, 0.0, 10.0)
+        else:
+            lo, hi = RANDOMIZATION_RANGES[k]
+            _check_range(f"randomization.{k}", v, lo, hi)
+            if k == "delay_max_steps" and not float(v).is_integer():
+                raise UsageError(f"randomization.{k} = {v!r} must be an integer")
+        changes[k] = jnp.asarray(v, dtype=old.dtype).reshape(old.shape)
+    out = base.replace(**changes)
+    if float(out.gust_tau_min_s) > float(out.gust_tau_max_s):
+        raise UsageError(
+            f"randomization.gust_tau_min_s = {float(out.gust_tau_min_s):g} must be <= gust_tau_max_s "
+            f"= {float(out.gust_tau_max_s):g}"
+        )
+    return out
+
+
+def split_tables(env_table: dict[str, Any]) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
+    """(EnvConfig fields, {table name: table}) of an env settings dict."""
+    flat = {k: v for k, v in env_table.items() if k not in TABLES}
+    nested = {}
+    for k in TABLES:
+        v = env_table.get(k, {})
+        if not isinstance(v, dict):
+            raise UsageError(f"[{k}] must be a table of settings, got {v!r}")
+        nested[k] = v
+    return flat, nested
+
+
+def env_config(flat: dict[str, Any]) -> EnvConfig:
+    """Validated EnvConfig from the ``[env]`` table's fields."""
+    allowed = {f.name for f in dataclasses.fields(EnvConfig)}
+    unknown = sorted(set(flat) - allowed)
+    if unknown:
+        raise UsageError(
+            f"unknown env setting {unknown[0]!r}; allowed: {', '.join(sorted(allowed | set(TABLES)))}"
+        )
+    try:
+        return EnvConfig(**flat)
+    except (TypeError, ValueError) as e:
+        raise UsageError(f"bad env setting: {e}") from None
+
+
+def env_params(config: EnvConfig, nested: dict[str, dict[str, Any]], spin_bank: Any = None) -> EnvParams:
+    """EnvParams of a config and its nested tables; ``spin_bank`` (a ``SpinBank``) feeds spin resets."""
+    params = default_params(config)
+    params = params.replace(
+        reward=reward_params(nested.get("reward"), params.reward),
+        randomization=randomization_params(nested.get("randomization"), params.randomization),
+    )
+    spin = spin_settings(nested.get("spin"))
+    dtype = params.h0_ft.dtype
+    if spin_bank is not None:
+        params = params.replace(
+            spin_states=jnp.asarray(np.asarray(spin_bank.x_wind), dtype),
+            spin_delta_rad=jnp.asarray(np.asarray(spin_bank.delta_rad), dtype),
+        )
+    elif spin.reset_prob > 0:
+        raise ValueError("spin.reset_prob > 0 needs a spin bank")
+    params = params.replace(spin_reset_prob=jnp.asarray(spin.reset_prob, dtype))
+    return strip_weak_type(params)
+
+
+def build_spin_bank(config: EnvConfig, nested: dict[str, dict[str, Any]]) -> Any:
+    """The spin bank of the ``[spin]`` table, or None when spin resets are off."""
+    import jax
+
+    from harv_jax.env.config import default_randomization_params
+    from harv_jax.spin_bank import make_spin_bank
+
+    spin = spin_settings(nested.get("spin"))
+    if spin.reset_prob <= 0:
+        return None
+    base = default_params(config)
+    rand = randomization_params(nested.get("randomization"), default_randomization_params(True))
+    if not spin.randomize_aircraft:
+        rand = default_randomization_params(False)
+    return make_spin_bank(
+        jax.random.key(spin.bank_seed), spin.bank_size, base.aircraft, rand, spin.spin_s_min, spin.spin_s_max,
+        config.dt_s, config.h0_ft,
+    )  # fmt: skip
+
+
+def bank_provenance(config: EnvConfig, nested: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """What a stored spin bank was made from (for its npz)."""
+    spin = spin_settings(nested.get("spin"))
+    return {"spin": dataclasses.asdict(spin), "dt_s": config.dt_s, "h0_ft": config.h0_ft,
+            "randomization": nested.get("randomization", {}),
+            "made_by": "harv_jax.spin_bank.make_spin_bank"}  # fmt: skip

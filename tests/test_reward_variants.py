@@ -1,0 +1,164 @@
+"""Our reward terms (smooth bands, dense per-channel terms, recovered bonus, action rate) by hand, the
+paper's reward kept bit for bit at the defaults, and the preset tables that set them."""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from harv_jax.env import reward, settings
+from harv_jax.env.config import paper_reward_params
+from harv_jax.errors import UsageError
+
+W = paper_reward_params()
+
+
+def _paper_total(x, target, action, pot_prev, terminated, w):
+    """The paper's reward as written before our terms existed (reference for the bit-for-bit test)."""
+    pqr = x[3:6]
+    errors = reward.tracking_errors(x, target)
+    e_alpha = errors[0]
+    eps = reward.blend(jnp.sqrt(reward.omega_norm_sq(pqr)), w)
+    r_raw = (1.0 - eps) * reward.phase1(pqr, w) + eps * reward.phase2(e_alpha, pqr, w)
+    inside = jnp.abs(errors) < w.bonus_tol_rad
+    amounts = jnp.stack([w.bonus_alpha, w.bonus_beta, w.bonus_mu])
+    bonus = jnp.where(inside, amounts, jnp.zeros_like(amounts))
+    r_action = -w.action_weight * jnp.sum(action * action)
+    pot_next = reward.potential(e_alpha, pqr, w)
+    r_shaping = w.shaping_weight * (w.discount * jnp.where(terminated, 0.0, pot_next) - pot_prev)
+    performance = r_raw + jnp.sum(bonus) + r_action
+    return jnp.where(terminated, w.terminal_reward, performance) + r_shaping
+
+
+def _random_steps(n, seed=0):
+    rng = np.random.default_rng(seed)
+    x = np.zeros((n, 10), np.float32)
+    x[:, 0] = rng.uniform(100, 1500, n)
+    x[:, 1] = rng.uniform(-0.2, 1.2, n)
+    x[:, 2] = rng.normal(0, 0.05, n)
+    x[:, 3:6] = rng.normal(0, 0.5, (n, 3)) * (rng.uniform(size=(n, 1)) < 0.7)
+    x[:, 6] = rng.uniform(-np.pi, np.pi, n)
+    near = rng.uniform(size=n) < 0.3  # a third of the states inside the bonus bands
+    x[near, 1] = 0.349 + rng.uniform(-0.02, 0.02, near.sum())
+    x[near, 2] = rng.uniform(-0.02, 0.02, near.sum())
+    x[near, 6] = rng.uniform(-0.02, 0.02, near.sum())
+    target = np.tile(np.array([0.349, 0.0, 0.0], np.float32), (n, 1))
+    a = rng.uniform(-1, 1, (n, 3)).astype(np.float32)
+    a_prev = rng.uniform(-1, 1, (n, 3)).astype(np.float32)
+    pot = rng.uniform(-3, 0, n).astype(np.float32)
+    term = rng.uniform(size=n) < 0.1
+    return tuple(map(jnp.asarray, (x, target, a, pot, term, a_prev)))
+
+
+def test_paper_reward_bit_for_bit():
+    """At the paper's parameters the total equals the paper-only formula exactly (float32, jitted)."""
+    x, target, a, pot, term, a_prev = _random_steps(4096)
+    ours = jax.jit(jax.vmap(lambda *z: reward.reward_terms(*z[:5], W, z[5])[0].total))(
+        x, target, a, pot, term, a_prev
+    )
+    ref = jax.jit(jax.vmap(lambda *z: _paper_total(*z, W)))(x, target, a, pot, term)
+    assert np.asarray(ours).tobytes() == np.asarray(ref).tobytes()
+    for name in ("dense_alpha", "dense_beta", "dense_mu", "recovered", "action_rate"):
+        terms = jax.vmap(lambda *z: reward.reward_terms(*z[:5], W, z[5])[0])(x, target, a, pot, term, a_prev)
+        assert np.all(np.asarray(getattr(terms, name)) == 0.0), name
+
+
+def test_paper_presets_have_no_reward_table():
+    from harv_jax.ppo import config as ppo_config
+
+    for name in ("paper-partial", "paper-full"):
+        _, env = ppo_config.load_preset(name)
+        assert "reward" not in env and "spin" not in env, name
+
+
+def test_smooth_bonus_by_hand():
+    # e = [0.0873, 0, -0.1746] rad with widths 0.0873: exp(-1) = 0.36788, exp(0) = 1, exp(-4) = 0.018316
+    # bonuses 5 * 0.36788 = 1.8394, 3 * 1 = 3, 3 * 0.018316 = 0.054947
+    w = W.replace(bonus_shape=jnp.asarray(1.0), bonus_width_rad=jnp.full((3,), 0.0873))
+    b = reward.bonuses(jnp.asarray([0.0873, 0.0, -0.1746]), w)
+    np.testing.assert_allclose(b, [1.8394, 3.0, 0.054947], rtol=1e-4)
+
+
+def test_dense_tracking_by_hand():
+    # w = [2, 1, 3], clip = [0.5, 0.5, pi]; e = [0.25, -1.0, -pi/2]
+    # alpha: -2 * 0.25/0.5 = -1; beta: -1 * min(2, 1) = -1; mu: -3 * (pi/2)/pi = -1.5
+    w = W.replace(w_track=jnp.asarray([2.0, 1.0, 3.0]), track_clip_rad=jnp.asarray([0.5, 0.5, math.pi]))
+    d = reward.dense_tracking(jnp.asarray([0.25, -1.0, -math.pi / 2]), w)
+    np.testing.assert_allclose(d, [-1.0, -1.0, -1.5], rtol=1e-6)
+
+
+def test_recovered_term_by_hand():
+    # tolerances 2 deg, 1 deg, 2 deg (0.0349, 0.01745, 0.0349 rad), 0.17 rad/s
+    w = W.replace(recovered_bonus=jnp.asarray(4.0))
+    # ||(0.1, 0.1, 0.1)|| = sqrt(0.03) = 0.1732 > 0.17: not recovered
+    assert float(reward.recovered_term(jnp.asarray([0.03, -0.017, 0.03]), jnp.full((3,), 0.1), w)) == 0.0
+    ok = reward.recovered_term(jnp.asarray([0.03, -0.017, 0.03]), jnp.asarray([0.1, 0.1, 0.0]), w)
+    assert float(ok) == 4.0  # ||(0.1, 0.1, 0)|| = 0.1414 < 0.17
+    assert (
+        float(reward.recovered_term(jnp.asarray([0.03, 0.018, 0.03]), jnp.zeros(3), w)) == 0.0
+    )  # beta > 1 deg
+    assert (
+        float(reward.recovered_term(jnp.asarray([0.03, 0.0, 0.0]), jnp.asarray([0.0, 0.0, 0.18]), w)) == 0.0
+    )
+
+
+def test_action_rate_by_hand():
+    # a - a_prev = [0.5, -1, 0]: sum of squares 1.25; weight 0.2 -> -0.25
+    w = W.replace(action_rate_weight=jnp.asarray(0.2))
+    r = reward.action_rate_penalty(jnp.asarray([0.5, 0.0, 1.0]), jnp.asarray([0.0, 1.0, 1.0]), w)
+    np.testing.assert_allclose(r, -0.25, rtol=1e-6)
+
+
+def test_total_adds_our_terms():
+    x, target, a, pot, term, a_prev = _random_steps(512, seed=1)
+    w = W.replace(bonus_shape=jnp.asarray(1.0), bonus_width_rad=jnp.full((3,), 0.0873),
+                  w_track=jnp.asarray([1.0, 2.0, 3.0]), recovered_bonus=jnp.asarray(5.0),
+                  action_rate_weight=jnp.asarray(0.3))  # fmt: skip
+    t = jax.vmap(lambda *z: reward.reward_terms(*z[:5], w, z[5])[0])(x, target, a, pot, term, a_prev)
+    perf = (t.raw + t.bonus_alpha + t.bonus_beta + t.bonus_mu + t.action + t.dense_alpha + t.dense_beta
+            + t.dense_mu + t.recovered + t.action_rate)  # fmt: skip
+    expect = np.where(np.asarray(term), np.asarray(t.terminal), np.asarray(perf)) + np.asarray(t.shaping)
+    np.testing.assert_allclose(t.total, expect, rtol=1e-5, atol=1e-4)
+
+
+@pytest.mark.parametrize(
+    "table, message",
+    [
+        ({"reward": {"w_track": [1.0, 2.0]}}, "reward.w_track"),
+        ({"reward": {"w_track": [1.0, -2.0, 0.0]}}, "reward.w_track[1] = -2.0 is outside"),
+        ({"reward": {"bonus_shape": 2}}, "reward.bonus_shape = 2 is outside the allowed range [0, 1]"),
+        ({"reward": {"recovered_bonus": float("nan")}}, "reward.recovered_bonus"),
+        ({"reward": {"bogus": 1}}, "unknown [reward] setting 'bogus'"),
+        ({"spin": {"reset_prob": 1.5}}, "spin.reset_prob = 1.5 is outside the allowed range [0, 1]"),
+        ({"spin": {"bank_size": 0}}, "spin.bank_size = 0 is outside"),
+        ({"spin": {"spin_s_min": 20.0, "spin_s_max": 10.0}}, "spin.spin_s_max = 10.0 is outside"),
+        ({"spin": {"mix": 0.2}}, "unknown [spin] setting 'mix'"),
+        ({"randomization": {"gust_on": 1}}, "randomization.gust_on = 1 must be true or false"),
+        ({"randomization": {"mass_frac": 0.9}}, "randomization.mass_frac = 0.9 is outside"),
+        ({"eval": {"every": -1}}, "eval.every = -1 must be a non-negative integer"),
+    ],
+)
+def test_bad_tables_one_line(table, message):
+    from harv_jax.commands.train import make_harv_env
+
+    with pytest.raises(UsageError) as e:
+        make_harv_env({"episode_steps": 100, "domain_randomization": False, **table})
+    assert message in str(e.value)
+    assert "\n" not in str(e.value)
+
+
+def test_tables_set_traced_params():
+    env_table = {"episode_steps": 100, "domain_randomization": True,
+                 "reward": {"w_track": [1.0, 2.0, 3.0], "recovered_bonus": 5.0},
+                 "randomization": {"gust_on": False, "mass_frac": 0.2}}  # fmt: skip
+    flat, nested = settings.split_tables(env_table)
+    p = settings.env_params(settings.env_config(flat), nested)
+    np.testing.assert_array_equal(p.reward.w_track, [1.0, 2.0, 3.0])
+    assert float(p.reward.recovered_bonus) == 5.0
+    assert not bool(p.randomization.gust_on) and bool(p.randomization.mass_on)
+    np.testing.assert_allclose(p.randomization.mass_frac, 0.2)
+    assert p.reward.w_track.dtype == jnp.float32 and not p.reward.w_track.weak_type
