@@ -162,3 +162,14 @@ def test_tables_set_traced_params():
     assert not bool(p.randomization.gust_on) and bool(p.randomization.mass_on)
     np.testing.assert_allclose(p.randomization.mass_frac, 0.2)
     assert p.reward.w_track.dtype == jnp.float32 and not p.reward.w_track.weak_type
+
+
+def test_mu_weight_by_hand():
+    # lo = 45 deg, hi = 60 deg: |gamma| = 30 deg -> 1; 75 deg -> 0; 52.5 deg (t = 0.5) -> 1 - 0.5 = 0.5;
+    # 48.75 deg (t = 0.25): smoothstep = 3(0.0625) - 2(0.015625) = 0.15625 -> 0.84375
+    w = W.replace(
+        mu_gamma_lo_rad=jnp.asarray(math.radians(45.0)), mu_gamma_hi_rad=jnp.asarray(math.radians(60.0))
+    )
+    got = [float(reward.mu_weight(jnp.asarray(math.radians(g)), w)) for g in (30.0, -75.0, 52.5, -48.75)]
+    np.testing.assert_allclose(got, [1.0, 0.0, 0.5, 0.84375], rtol=1e-5, atol=1e-6)
+    assert float(reward.mu_weight(jnp.asarray(1.5), W)) == 1.0  # the paper's settings: no weighting

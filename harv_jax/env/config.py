@@ -128,6 +128,10 @@ class RewardParams:
         action_rate_weight: weight of -sum_i (a_i - a_prev_i)^2 on the normalized action (paper 0).
         raw_weight: multiplier of the blended phase rewards r_raw (paper 1): below 1 the rate damping
             weighs less against tracking.
+        mu_gamma_lo_rad, mu_gamma_hi_rad: the mu terms (bonus and dense) are weighted by 1 for |gamma| <= lo,
+            0 for |gamma| >= hi, a smoothstep between (mu is undefined at a vertical flight path; the SMC
+            blends its mu channel out over the same kind of band). Paper: no weighting (lo = hi = 10 rad,
+            beyond any |gamma|).
 
     The fields after ``terminal_reward`` are ours (``experiments/reward_ablation``); their defaults leave the
     paper's reward unchanged bit for bit.
@@ -154,6 +158,8 @@ class RewardParams:
     recovered_tol: jnp.ndarray
     action_rate_weight: jnp.ndarray
     raw_weight: jnp.ndarray
+    mu_gamma_lo_rad: jnp.ndarray
+    mu_gamma_hi_rad: jnp.ndarray
 
 
 #: Tolerances of the recovery criterion (|e_alpha|, |e_beta|, |e_mu| rad; ||omega|| rad/s): 2 deg, 1 deg,
@@ -173,7 +179,7 @@ def paper_reward_params(discount: float = 0.99, dtype=None) -> RewardParams:
         action_weight=f(1.0), discount=f(discount), shaping_weight=f(1.0), terminal_reward=f(-1000.0),
         bonus_shape=f(0.0), bonus_width_rad=f([0.017, 0.017, 0.017]), w_track=f([0.0, 0.0, 0.0]),
         track_clip_rad=f([0.5, 0.5, 0.5]), recovered_bonus=f(0.0), recovered_tol=f(RECOVERED_TOL),
-        action_rate_weight=f(0.0), raw_weight=f(1.0),
+        action_rate_weight=f(0.0), raw_weight=f(1.0), mu_gamma_lo_rad=f(10.0), mu_gamma_hi_rad=f(10.0),
     )  # fmt: skip
 
 

@@ -25,6 +25,8 @@ paper's bit for bit, ``tests/test_reward.py``):
     recovered   = +recovered_bonus [all of |e_alpha|, |e_beta|, |e_mu|, ||omega|| below recovered_tol]
     action_rate = -action_rate_weight sum_i (a_i - a_prev_i)^2
     r_raw       = raw_weight ((1 - eps) r_phase1 + eps r_phase2)     (paper: raw_weight = 1)
+    w_mu(gamma) = 1 - smoothstep((|gamma| - mu_gamma_lo) / (mu_gamma_hi - mu_gamma_lo)) multiplies the mu
+                  bonus and dense_mu (paper: 1 at every gamma)
     reward      = paper reward + dense + recovered + action_rate     (non-terminal step)
     reward   = terminal_reward + (Gamma * 0 - sigma_t)                 (terminating step)
 
@@ -133,6 +135,13 @@ def bonuses(errors_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
     return jnp.where(params.bonus_shape > 0.5, smooth, indicator)
 
 
+def mu_weight(gamma_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
+    """Weight of the mu terms: 1 for |gamma| <= mu_gamma_lo_rad, 0 for |gamma| >= mu_gamma_hi_rad."""
+    width = jnp.maximum(params.mu_gamma_hi_rad - params.mu_gamma_lo_rad, 1e-6)
+    t = jnp.clip((jnp.abs(gamma_rad) - params.mu_gamma_lo_rad) / width, 0.0, 1.0)
+    return 1.0 - t * t * (3.0 - 2.0 * t)
+
+
 def dense_tracking(errors_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
     """[3] dense per-channel terms -w_track_i min(|e_i| / track_clip_i, 1)."""
     return -params.w_track * jnp.minimum(jnp.abs(errors_rad) / params.track_clip_rad, 1.0)
@@ -203,7 +212,9 @@ def reward_terms(
     r1 = phase1(pqr, params)
     r2 = phase2(e_alpha, pqr, params)
     r_raw = params.raw_weight * ((1.0 - eps) * r1 + eps * r2)  # raw_weight 1 (paper): x * 1.0 == x
-    bonus = bonuses(errors, params)
+    w_mu = mu_weight(x_wind[7], params)  # exactly 1 at the paper's settings: x * 1.0 == x
+    channel_w = jnp.stack([jnp.ones_like(w_mu), jnp.ones_like(w_mu), w_mu])
+    bonus = bonuses(errors, params) * channel_w
     r_action = action_penalty(action, params)
     pot_next = potential(e_alpha, pqr, params)
     pot_target = jnp.where(terminated, jnp.zeros_like(pot_next), pot_next)
@@ -213,7 +224,7 @@ def reward_terms(
     def paid(v):
         return jnp.where(terminated, zero, v)
 
-    dense = dense_tracking(errors, params)
+    dense = dense_tracking(errors, params) * channel_w
     r_recovered = recovered_term(errors, pqr, params)
     r_rate = action_rate_penalty(action, action if action_prev is None else action_prev, params)
     r_terminal = jnp.where(terminated, params.terminal_reward, zero)

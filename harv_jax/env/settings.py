@@ -63,6 +63,8 @@ REWARD_RANGES: dict[str, tuple[float, float, int | None]] = {
     "recovered_tol": (1e-6, 10.0, 4),
     "action_rate_weight": (0.0, 1000.0, None),
     "raw_weight": (0.0, 100.0, None),
+    "mu_gamma_lo_rad": (0.0, 10.0, None),
+    "mu_gamma_hi_rad": (0.0, 10.0, None),
 }
 #: Allowed range of the randomization ranges (switches are booleans).
 RANDOMIZATION_RANGES: dict[str, tuple[float, float]] = {
