@@ -175,9 +175,11 @@ def register(app: typer.Typer) -> None:
         """RL vs SMC vs hybrid on the spin and a fixed state: overlaid histories, metrics table (md, csv)."""
         from harv_jax.commands.fly import load_state_file, validate_options
         from harv_jax.commands.mc import build_controller, parse_controllers
+        from harv_jax.guards import check_seed
         from harv_jax.outdir import prepare_out_dir
 
         names = parse_controllers(controller)
+        check_seed(seed)
         for name in names:
             validate_options(name, "sat", target_alpha, duration, spin_s)
             build_controller(name, policy, zeta)

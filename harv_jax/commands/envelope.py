@@ -243,11 +243,15 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Recovery envelope map: outcome and recovery time over an initial-state grid, per controller."""
         from harv_jax.commands.mc import build_controller, parse_controllers, validate
+        from harv_jax.guards import check_closed_loop_batch, check_seed
         from harv_jax.outdir import prepare_out_dir
 
         names = parse_controllers(controller)
         g = build_grid(grid, n, fixed)
         validate(g.n_runs, target_alpha, duration, chunk)
+        check_seed(seed)
+        n_steps = round(duration / DT_S)
+        check_closed_loop_batch(g.n_runs, n_steps, n_steps, chunk, len(names), runs_flag="--n x --n =")
         for name in names:
             build_controller(name, policy, zeta)  # fail fast, before creating the output directory
         out_dir = prepare_out_dir(out, force)

@@ -364,9 +364,11 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Fly a controller closed loop: trajectory.csv, trajectory.png, sliding.png, metrics.json (and
         hybrid.png for the hybrid)."""
+        from harv_jax.guards import check_seed
         from harv_jax.outdir import prepare_out_dir
 
         validate_options(controller, switching, target_alpha, duration, spin_s)
+        check_seed(seed)
         if scenario not in SCENARIOS:
             load_state_file(Path(scenario))  # validate before creating the output directory
         if controller != "smc":

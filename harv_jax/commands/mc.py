@@ -44,9 +44,17 @@ def build_controller(name: str, policy: str | None, zeta: str = "continuous"):
 
         return make_smc()
     if name in ("rl", "hybrid"):
+        from harv_jax.env.config import ACTION_SIZE, OBSERVATION_SIZE
         from harv_jax.policy import resolve_policy
 
-        act = resolve_policy(policy).deterministic
+        pol = resolve_policy(policy)
+        sizes = (pol.networks.observation_size, pol.networks.action_size)
+        if sizes != (OBSERVATION_SIZE, ACTION_SIZE):
+            raise UsageError(
+                f"--policy {policy!r} maps {sizes[0]} observations to {sizes[1]} actions; this aircraft's "
+                f"controller needs {OBSERVATION_SIZE} -> {ACTION_SIZE}"
+            )
+        act = pol.deterministic
         if name == "rl":
             from harv_jax.control.rl import make_rl_controller
 
@@ -198,10 +206,13 @@ def register(app: typer.Typer) -> None:
         ),
     ) -> None:
         """Monte Carlo: same sampled aircraft/initial states for every controller; summary + figures."""
+        from harv_jax.guards import check_closed_loop_batch, check_seed
         from harv_jax.outdir import prepare_out_dir
 
         names = parse_controllers(controller)
         validate(runs, target_alpha, duration, chunk)
+        check_seed(seed)
+        check_closed_loop_batch(runs, round(duration / 0.01), 10, chunk, len(names))
         for name in names:
             build_controller(name, policy, zeta)  # fail fast, before creating the output directory
         out_dir = prepare_out_dir(out, force)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import typer
 
 POLICY_HELP = (
-    "rl/hybrid policy: run folder, .npz, checkpoint[@seed], shipped:full (default), shipped:partial."
+    "rl/hybrid policy: run folder, .npz, checkpoint\\[@seed], shipped:full (default), shipped:partial."
 )
 ZETA_HELP = "Hybrid zeta schedule: continuous, hysteresis (the paper's), always, never."
 

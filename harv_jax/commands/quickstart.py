@@ -29,9 +29,12 @@ def register(app: typer.Typer) -> None:
         """Spin comparison and a Monte Carlo of SMC, RL and hybrid with the shipped policy, plus a report."""
         from harv_jax.commands.compare import run_compare
         from harv_jax.commands.mc import build_controller, run_monte_carlo, validate
+        from harv_jax.guards import check_closed_loop_batch, check_seed
         from harv_jax.outdir import prepare_out_dir
 
         validate(runs, 0.349, 60.0, 250)
+        check_seed(seed)
+        check_closed_loop_batch(runs, 6000, 10, 250, 3)
         names = ["smc", "rl", "hybrid"]
         for name in names:
             build_controller(name, policy, zeta)

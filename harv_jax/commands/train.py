@@ -348,7 +348,7 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, help="Replace an existing non-empty --out directory."),
         init_policy: str = typer.Option(
             None,
-            help="Start every seed from this policy (shipped:full|partial, or a path[@seed]): fine-tuning.",
+            help="Start every seed from this policy (shipped:full|partial, or a path\\[@seed]): fine-tuning.",
         ),
     ) -> None:
         """Train PPO policies (several seeds at once) on the spin/upset recovery env."""
