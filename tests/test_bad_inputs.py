@@ -42,7 +42,7 @@ CASES: list[tuple[list[str], str]] = [
     (["simulate", "--dt", "0"], "--dt"),
     (["simulate", "--state", "V=1e30"], "V=1e+30"),
     (["simulate", "--state", "V=-5"], "V=-5"),
-    (["simulate", "--state", "h=1e9"], "h=1e+09"),
+    (["simulate", "--state", "h=1e9"], "h=1000000000.0"),
     (["simulate", "--state", "p=100"], "p=100"),
     (["simulate", "--state", "gamma=3"], "gamma=3"),
     (["simulate", "--state", "foo=1"], "foo"),

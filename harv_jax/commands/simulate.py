@@ -60,7 +60,7 @@ def validate_state(state: dict[str, float]) -> None:
             continue
         lo, hi, unit = STATE_LIMITS[name]
         if not (math.isfinite(v) and lo <= v <= hi):
-            raise UsageError(f"state {name}={v:g} {unit} is outside the allowed [{lo:g}, {hi:g}] {unit}")
+            raise UsageError(f"state {name}={v} {unit} is outside the allowed [{lo:g}, {hi:g}] {unit}")
 
 
 def validate_controls(controls: dict[str, float]) -> None:
