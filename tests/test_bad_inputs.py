@@ -91,6 +91,7 @@ CASES: list[tuple[list[str], str]] = [
     (["mc", "--duration", "1e7"], "--duration"),
     (["mc", "--target-alpha", "nan"], "--target-alpha"),
     (["mc", "--controller", "rl", "--policy", "POL_nan"], "non-finite"),
+    (["mc", "--runs", "1000000", "--duration", "600", "--controller", "smc,rl,hybrid"], "memory"),
     (["mc", "--out", "", "--force"], "current directory"),
     (["mc", "--out", "..", "--force"], "contains the current directory"),
     # --- compare
@@ -112,6 +113,8 @@ CASES: list[tuple[list[str], str]] = [
     (["envelope", "--duration", "1e7"], "--duration"),
     (["envelope", "--n", "1000", "--chunk", "300000"], "memory"),
     (["envelope", "--out", "..", "--force"], "contains the current directory"),
+    (["envelope", "--fixed", "V0=1e30"], "initial V"),
+    (["envelope", "--fixed", "h0=-5"], "initial h"),
     # --- report
     (["report", "nonexistent_dir"], "nonexistent_dir"),
     (["report", "FOREIGN"], "holds no summary.json"),
