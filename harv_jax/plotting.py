@@ -266,7 +266,8 @@ def plot_terminal_errors(errors_deg: Mapping[str, np.ndarray], path: str | Path)
     separate, hatched overflow bar labelled with its count, and non-finite runs are counted in the legend.
     """
     lim = TERMINAL_ERROR_RANGE_DEG
-    fig, axes = plt.subplots(3, 1, figsize=(9, 10))
+    fig, axes = plt.subplots(3, 1, figsize=(12, 10))
+    any_overflow = False
     for i, (ax, name) in enumerate(zip(axes, ("alpha", "beta", "mu"), strict=True)):
         cols = {c: np.asarray(e[:, i], np.float64) for c, e in errors_deg.items()}
         inside = np.concatenate(
@@ -297,11 +298,9 @@ def plot_terminal_errors(errors_deg: Mapping[str, np.ndarray], path: str | Path)
                     ax.text(x, count * 1.15, f"{count} {'<' if side < 0 else '>'} {side * lim:+g}",
                             ha="center", va="bottom", fontsize=7, color=f"C{k}")  # fmt: skip
         if any(np.any(np.abs(v[np.isfinite(v)]) > lim) for v in cols.values()):
+            any_overflow = True
             for side in (-1, 1):
                 ax.axvline(side * (span + 1.5 * width), color="grey", lw=0.8, ls="-")
-            ax.text(0.01, 0.97, f"hatched bars beyond the grey lines: runs with |error| > {lim:g} deg "
-                    "(overflow, count written above; not their values)", transform=ax.transAxes, fontsize=7,
-                    va="top")  # fmt: skip
         for x in (-0.5, 0.5):
             if x > -span and x < span:
                 ax.axvline(x, color="k", ls=":", lw=0.8)
@@ -310,7 +309,10 @@ def plot_terminal_errors(errors_deg: Mapping[str, np.ndarray], path: str | Path)
         ax.set_xlabel(f"terminal {name} error [deg] (mean over the last 1 s; dotted: +-0.5 deg)")
         ax.set_ylabel("runs (log)")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, loc="upper center")
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    note = (f"; hatched bars beyond the grey lines: number of runs with |error| > {lim:g} deg (overflow, "
+            "not their values)" if any_overflow else "")  # fmt: skip
+    fig.suptitle(f"terminal tracking errors per controller{note}", fontsize=9)
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=110)
