@@ -20,8 +20,20 @@ app = typer.Typer(
 )
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from harv_jax import __version__
+
+        typer.echo(f"harv-jax {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
-def _root() -> None:
+def _root(
+    version: bool = typer.Option(
+        False, "--version", callback=_print_version, is_eager=True, help="Print the version and exit."
+    ),
+) -> None:
     """F-18/HARV upset and spin recovery: flight model, controllers, RL training, Monte Carlo."""
 
 

@@ -1,4 +1,10 @@
-"""Output directories: never silently overwrite what a previous run wrote."""
+"""Output directories: never silently overwrite what a previous run wrote, never delete what harv-jax
+did not write.
+
+Every directory :func:`prepare_out_dir` creates gets a marker file (:data:`MARKER`). ``--force`` replaces a
+non-empty directory only if it holds that marker, and never the current directory, one of its parents,
+the home directory or the filesystem root.
+"""
 
 from __future__ import annotations
 
@@ -7,21 +13,101 @@ from pathlib import Path
 
 from harv_jax.errors import UsageError
 
+#: Marker file written into every output directory a harv-jax command creates.
+MARKER = ".harv_jax_run"
 
-def prepare_out_dir(path: str | Path, force: bool = False) -> Path:
-    """Create ``path`` for a new run's outputs.
+
+def is_run_dir(path: str | Path) -> bool:
+    """True if ``path`` is a directory that a harv-jax command created (it holds :data:`MARKER`)."""
+    p = Path(path)
+    return p.is_dir() and (p / MARKER).is_file()
+
+
+def _protected_reason(out: Path) -> str | None:
+    """Why ``out`` (resolved) must never be removed, or None."""
+    cwd = Path.cwd().resolve()
+    if out == cwd:
+        return "it is the current directory"
+    if out in cwd.parents:
+        return "it contains the current directory"
+    if out == Path(out.anchor):
+        return "it is the filesystem root"
+    home = Path.home().resolve()
+    if out == home or out in home.parents:
+        return "it is the home directory" if out == home else "it contains the home directory"
+    return None
+
+
+def check_force_target(path: str | Path) -> None:
+    """Raise UsageError unless ``--force`` may remove ``path`` (a marked run directory, not protected)."""
+    out = Path(path)
+    flag = f"--out {str(path)!r}"
+    if out.is_symlink():
+        raise UsageError(
+            f"{flag} is a symbolic link; --force replaces only a real run folder; choose another --out"
+        )
+    reason = _protected_reason(out.resolve())
+    if reason is not None:
+        raise UsageError(f"{flag} cannot be replaced with --force: {reason}; choose a new folder for --out")
+    if not is_run_dir(out):
+        raise UsageError(
+            f"{flag} is not empty and was not written by harv-jax (no {MARKER} file); --force replaces only "
+            "harv-jax run folders: choose another --out or remove it yourself"
+        )
+
+
+def _check_parents(out: Path) -> None:
+    """Raise UsageError if an existing ancestor of ``out`` is a file (mkdir would fail half-way)."""
+    for parent in out.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise UsageError(
+                    f"--out {str(out)!r} lies below {str(parent)!r}, which is a file, not a folder"
+                )
+            return
+
+
+def check_out_dir(path: str | Path, force: bool = False) -> Path:
+    """Validate ``--out`` without touching the disk; returns it as a Path.
 
     Raises:
-        UsageError: ``path`` exists and is not empty, and ``force`` is False.
+        UsageError: empty path; ``path`` or an ancestor is a file; ``path`` is non-empty and ``force`` is
+            False; ``force`` is True but ``path`` may not be removed (:func:`check_force_target`).
     """
+    if str(path).strip() == "":
+        raise UsageError("--out '' is empty; give the name of a new folder, e.g. --out runs/mine")
     out = Path(path)
+    _check_parents(out)
     if out.exists() and not out.is_dir():
-        raise UsageError(f"--out {str(out)!r} exists and is not a directory")
-    if out.exists() and any(out.iterdir()):
+        raise UsageError(f"--out {str(out)!r} exists and is a file, not a folder; choose another --out")
+    if out.is_dir() and any(out.iterdir()):
         if not force:
             raise UsageError(
                 f"--out {str(out)!r} already exists and is not empty; choose another or pass --force"
             )
-        shutil.rmtree(out)
-    out.mkdir(parents=True, exist_ok=True)
+        check_force_target(out)
+    elif force and out.exists():
+        reason = _protected_reason(out.resolve())
+        if reason is not None:
+            raise UsageError(f"--out {str(out)!r} cannot be used with --force: {reason}")
+    return out
+
+
+def prepare_out_dir(path: str | Path, force: bool = False) -> Path:
+    """Create ``path`` for a new run's outputs and write the run marker into it.
+
+    A non-empty ``path`` is replaced only with ``force`` and only if harv-jax wrote it (see the module
+    docstring).
+
+    Raises:
+        UsageError: see :func:`check_out_dir`; or the folder cannot be created.
+    """
+    out = check_out_dir(path, force)
+    if out.is_dir() and any(out.iterdir()):
+        shutil.rmtree(out)  # check_out_dir allowed it: a marked, unprotected run folder
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / MARKER).write_text("written by harv-jax; `--force` may replace this folder\n")
+    except OSError as e:
+        raise UsageError(f"--out {str(out)!r} cannot be created ({e.strerror or e})") from None
     return out

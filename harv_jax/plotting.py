@@ -37,6 +37,28 @@ _PANELS = (
 )
 
 
+#: Line style of the i-th overlaid run (cycled): solid thin; a thick translucent band; dashed on top; dotted.
+#: Runs that coincide (the hybrid flies the SMC law while zeta = 1) stay distinguishable.
+RUN_STYLES = (
+    {"ls": "-", "lw": 1.3, "alpha": 1.0, "zorder": 3},
+    {"ls": "-", "lw": 3.4, "alpha": 0.45, "zorder": 2},
+    {"ls": "--", "lw": 1.3, "alpha": 1.0, "zorder": 4},
+    {"ls": ":", "lw": 1.8, "alpha": 1.0, "zorder": 5},
+)
+
+
+def unwrap_angle_rad(angle_rad: np.ndarray) -> np.ndarray:
+    """Continuous angle (no jumps at +-pi) that starts at the recorded (wrapped) initial value, so runs
+    from one initial state start together; a full turn then shows as 360 deg, not as a jump."""
+    a = np.asarray(angle_rad, np.float64)
+    ok = np.isfinite(a)
+    if not ok.any():
+        return a
+    out = np.full_like(a, np.nan)
+    out[ok] = np.unwrap(a[ok])
+    return out
+
+
 def plot_time_histories(
     t_s: np.ndarray,
     runs: Mapping[str, Mapping[str, np.ndarray]],
@@ -47,33 +69,68 @@ def plot_time_histories(
 ) -> Path:
     """Overlay time histories of one or more runs in a 4 x 3 grid (the paper's four figures).
 
+    Runs are told apart by line style (``RUN_STYLES``) as well as colour, so a run lying exactly on
+    another stays visible; mu is unwrapped (continuous); the altitude panel states h0.
+
     Args:
         t_s: [T] time, s.
         runs: label -> columns (``V, alpha, beta, p, q, r, mu, gamma, h, de, da, dr``; rad, ft).
         path: PNG path to write.
         title: figure title.
-        references: optional column -> reference value (rad) drawn dashed.
-        t_marker_s: optional time of a vertical marker (e.g. controller engagement).
+        references: optional column -> reference value (rad) drawn dashed black and labelled.
+        t_marker_s: optional time of the controller's engagement (vertical dotted line, labelled).
     """
-    fig, axes = plt.subplots(4, 3, figsize=(13, 11), sharex=True)
+    from matplotlib.lines import Line2D
+
+    fig, axes = plt.subplots(4, 3, figsize=(13, 11.5), sharex=True)
+    h0s = {float(np.asarray(cols["h"])[0]) for cols in runs.values()}
     for row, panel in zip(axes, _PANELS, strict=True):
         for ax, (name, label, scale) in zip(row, panel, strict=True):
-            for run_label, cols in runs.items():
-                y = cols["h"] - cols["h"][0] if name == "dh" else cols[name]
-                ax.plot(t_s, np.asarray(y) * scale, label=run_label, lw=1.0)
+            for k, (run_label, cols) in enumerate(runs.items()):
+                if name == "dh":
+                    y = np.asarray(cols["h"]) - np.asarray(cols["h"])[0]
+                elif name == "mu":
+                    y = unwrap_angle_rad(cols["mu"])
+                else:
+                    y = np.asarray(cols[name])
+                style = RUN_STYLES[k % len(RUN_STYLES)]
+                ax.plot(t_s, y * scale, color=f"C{k}", label=run_label, **style)
             if references and name in references:
-                ax.axhline(references[name] * scale, color="k", ls="--", lw=0.8)
+                ax.axhline(references[name] * scale, color="k", ls="--", lw=0.8, zorder=1)
+                if name == "mu":  # an unwrapped angle meets its reference at every multiple of 360 deg
+                    lo, hi = ax.get_ylim()
+                    ref_deg = references[name] * scale
+                    for k in range(
+                        int(np.floor((lo - ref_deg) / 360)), int(np.ceil((hi - ref_deg) / 360)) + 1
+                    ):
+                        if k and lo <= ref_deg + 360 * k <= hi:
+                            ax.axhline(ref_deg + 360 * k, color="k", ls="--", lw=0.5, alpha=0.5, zorder=1)
             if t_marker_s is not None:
-                ax.axvline(t_marker_s, color="grey", ls=":", lw=0.8)
+                ax.axvline(t_marker_s, color="grey", ls=":", lw=1.0, zorder=1)
+            if name == "dh" and len(h0s) == 1:
+                label = f"h - h0 [ft], h0 = {h0s.pop():,.0f} ft"
+            elif name == "mu":
+                label = "mu [deg] (unwrapped; ref. mod 360)"
             ax.set_ylabel(label)
             ax.grid(alpha=0.3)
     for ax in axes[-1]:
         ax.set_xlabel("t [s]")
-    if len(runs) > 1:
-        axes[0, 0].legend(fontsize=8)
+    handles = [Line2D([], [], color=f"C{k}", label=lab, **{kk: v for kk, v in RUN_STYLES[k % 4].items()
+                                                         if kk != "zorder"})
+               for k, lab in enumerate(runs)]  # fmt: skip
+    if references:
+        handles.append(
+            Line2D([], [], color="k", ls="--", lw=0.8, label="reference (alpha_d; beta_d = mu_d = 0)")
+        )
+    if t_marker_s is not None:
+        handles.append(
+            Line2D([], [], color="grey", ls=":", lw=1.0, label=f"controller engaged (t = {t_marker_s:g} s)")
+        )
+    fig.legend(handles=handles, loc="upper center", ncol=min(len(handles), 5), fontsize=9, frameon=False,
+               bbox_to_anchor=(0.5, 0.975))  # fmt: skip
     if title:
-        fig.suptitle(title)
-    fig.tight_layout()
+        fig.suptitle(title, y=0.995)
+    fig.tight_layout(rect=(0, 0, 1, 0.955))
     path = Path(path)
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -99,8 +156,30 @@ def write_bands_csv(t_s: np.ndarray, history_rad: np.ndarray, path: str | Path) 
     return Path(path)
 
 
+def band_limits_deg(
+    histories_rad: Mapping[str, np.ndarray], reference_rad: np.ndarray
+) -> list[tuple[float, float]]:
+    """One shared y-range per variable (alpha, beta, mu; deg) over every controller's 5-95 % band and
+    the reference, so that band plots of different controllers can be compared by eye."""
+    lims = []
+    for i in range(3):
+        vals = [np.degrees(float(reference_rad[i]))]
+        for h in histories_rad.values():
+            pct = band_percentiles(h)[[0, -1], :, i]
+            vals += [float(np.nanmin(pct)), float(np.nanmax(pct))]
+        lo, hi = min(vals), max(vals)
+        pad = 0.05 * max(hi - lo, 1.0)
+        lims.append((lo - pad, hi + pad))
+    return lims
+
+
 def plot_mc_bands(
-    t_s: np.ndarray, history_rad: np.ndarray, reference_rad: np.ndarray, path: str | Path, title: str = ""
+    t_s: np.ndarray,
+    history_rad: np.ndarray,
+    reference_rad: np.ndarray,
+    path: str | Path,
+    title: str = "",
+    ylims_deg: list[tuple[float, float]] | None = None,
 ) -> Path:
     """Monte Carlo bands of alpha, beta, mu: 5-95 and 25-75 percentiles and the median.
 
@@ -110,6 +189,7 @@ def plot_mc_bands(
         reference_rad: [3] references, rad.
         path: PNG path.
         title: figure title.
+        ylims_deg: optional (low, high) per variable, deg (:func:`band_limits_deg`: shared scales).
     """
     fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
     names = ("alpha", "beta", "mu")
@@ -121,6 +201,8 @@ def plot_mc_bands(
         ax.plot(t_s, p50, color="C0", lw=1.2, label="median")
         ax.axhline(np.degrees(reference_rad[i]), color="k", ls="--", lw=0.8, label="reference")
         ax.set_ylabel(f"{name} [deg]")
+        if ylims_deg is not None:
+            ax.set_ylim(*ylims_deg[i])
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8, loc="upper right")
     axes[-1].set_xlabel("t [s]")
@@ -132,22 +214,105 @@ def plot_mc_bands(
     return path
 
 
-def plot_terminal_errors(errors_deg: Mapping[str, np.ndarray], path: str | Path) -> Path:
-    """Histograms of terminal alpha, beta, mu errors (deg) per controller ([N, 3] arrays)."""
-    fig, axes = plt.subplots(3, 1, figsize=(9, 9))
+def plot_mc_bands_overlay(
+    t_s: np.ndarray,
+    histories_rad: Mapping[str, np.ndarray],
+    reference_rad: np.ndarray,
+    path: str | Path,
+    title: str = "",
+) -> Path:
+    """All controllers' 5-95 % bands (translucent) and medians (lines) of alpha, beta, mu on one figure.
+
+    Args:
+        t_s: [T] sample times, s.
+        histories_rad: controller -> [N, T, 3] alpha, beta, mu of every run, rad.
+        reference_rad: [3] references, rad.
+        path: PNG path.
+        title: figure title.
+    """
+    fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
+    lims = band_limits_deg(histories_rad, reference_rad)
+    for k, (ctrl, h) in enumerate(histories_rad.items()):
+        pct = band_percentiles(h)
+        style = RUN_STYLES[k % len(RUN_STYLES)]
+        for i, ax in enumerate(axes):
+            ax.fill_between(t_s, pct[0, :, i], pct[-1, :, i], color=f"C{k}", alpha=0.18, lw=0,
+                            label=f"{ctrl} 5-95%")  # fmt: skip
+            ax.plot(t_s, pct[2, :, i], color=f"C{k}", label=f"{ctrl} median",
+                    **{**style, "lw": max(style["lw"] * 0.8, 1.2)})  # fmt: skip
     for i, (ax, name) in enumerate(zip(axes, ("alpha", "beta", "mu"), strict=True)):
-        vals = [np.clip(e[:, i], -10.0, 10.0) for e in errors_deg.values()]
-        finite = np.concatenate([v[np.isfinite(v)] for v in vals]) if vals else np.zeros(1)
-        lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (-1.0, 1.0)
-        bins = np.linspace(min(lo, -0.5), max(hi, 0.5), 61)
-        for label, v in zip(errors_deg, vals, strict=True):
-            ax.hist(v[np.isfinite(v)], bins=bins, alpha=0.5, label=label)
-        for x in (-0.5, 0.5):
-            ax.axvline(x, color="k", ls=":", lw=0.8)
-        ax.set_xlabel(f"terminal {name} error [deg] (mean over the last 1 s; clipped to +-10)")
-        ax.set_ylabel("runs")
+        ax.axhline(np.degrees(reference_rad[i]), color="k", ls="--", lw=0.8, label="reference")
+        ax.set_ylabel(f"{name} [deg]")
+        ax.set_ylim(*lims[i])
         ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=8)
+    axes[0].legend(fontsize=8, loc="upper right", ncol=2)
+    axes[-1].set_xlabel("t [s]")
+    fig.suptitle(title or "Monte Carlo bands of all controllers")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+#: Terminal errors beyond this (deg) are counted in overflow bins, not drawn as if they were modes.
+TERMINAL_ERROR_RANGE_DEG = 10.0
+
+
+def plot_terminal_errors(errors_deg: Mapping[str, np.ndarray], path: str | Path) -> Path:
+    """Step histograms (log count axis) of terminal alpha, beta, mu errors (deg) per controller ([N, 3]).
+
+    Errors beyond +-``TERMINAL_ERROR_RANGE_DEG`` are not clipped into the edge bins: each side has a
+    separate, hatched overflow bar labelled with its count, and non-finite runs are counted in the legend.
+    """
+    lim = TERMINAL_ERROR_RANGE_DEG
+    fig, axes = plt.subplots(3, 1, figsize=(12, 10))
+    any_overflow = False
+    for i, (ax, name) in enumerate(zip(axes, ("alpha", "beta", "mu"), strict=True)):
+        cols = {c: np.asarray(e[:, i], np.float64) for c, e in errors_deg.items()}
+        inside = np.concatenate(
+            [v[np.isfinite(v) & (np.abs(v) <= lim)] for v in cols.values()] + [np.zeros(0)]
+        )
+        span = max(float(np.max(np.abs(inside))) if inside.size else 0.5, 0.5)
+        bins = np.linspace(-span, span, 81)
+        width = bins[1] - bins[0]
+        for k, (ctrl, v) in enumerate(cols.items()):
+            style = RUN_STYLES[k % len(RUN_STYLES)]
+            fin = v[np.isfinite(v)]
+            under, over = int(np.sum(fin < -lim)), int(np.sum(fin > lim))
+            n_nan = int(v.size - fin.size)
+            extra = [f"{under} < -{lim:g}" if under else "", f"{over} > {lim:g}" if over else "",
+                     f"{n_nan} non-finite" if n_nan else ""]  # fmt: skip
+            extra = ", ".join(x for x in extra if x)
+            label = f"{ctrl} (N = {v.size}" + (f"; {extra}" if extra else "") + ")"
+            shown = fin[np.abs(fin) <= lim]
+            ax.hist(shown, bins=bins, histtype="step", color=f"C{k}", lw=style["lw"] * 0.9, ls=style["ls"],
+                    alpha=max(style["alpha"], 0.7), label=label, zorder=style["zorder"])  # fmt: skip
+            ax.hist(shown, bins=bins, histtype="stepfilled", color=f"C{k}", alpha=0.12, zorder=1)
+            for side, count in ((-1, under), (1, over)):
+                if count:
+                    x = side * (span + (3 + 2 * k) * width)
+                    ax.bar(
+                        x, count, width=1.6 * width, color=f"C{k}", alpha=0.5, hatch="//", edgecolor=f"C{k}"
+                    )
+                    ax.text(x, count * 1.15, f"{count} {'<' if side < 0 else '>'} {side * lim:+g}",
+                            ha="center", va="bottom", fontsize=7, color=f"C{k}")  # fmt: skip
+        if any(np.any(np.abs(v[np.isfinite(v)]) > lim) for v in cols.values()):
+            any_overflow = True
+            for side in (-1, 1):
+                ax.axvline(side * (span + 1.5 * width), color="grey", lw=0.8, ls="-")
+        for x in (-0.5, 0.5):
+            if x > -span and x < span:
+                ax.axvline(x, color="k", ls=":", lw=0.8)
+        ax.set_yscale("log")
+        ax.set_ylim(top=ax.get_ylim()[1] * 3)  # room for the overflow counts and the legend
+        ax.set_xlabel(f"terminal {name} error [deg] (mean over the last 1 s; dotted: +-0.5 deg)")
+        ax.set_ylabel("runs (log)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    note = (f"; hatched bars beyond the grey lines: number of runs with |error| > {lim:g} deg (overflow, "
+            "not their values)" if any_overflow else "")  # fmt: skip
+    fig.suptitle(f"terminal tracking errors per controller{note}", fontsize=9)
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=110)

@@ -13,8 +13,23 @@ import numpy as np  # noqa: E402
 from matplotlib.colors import BoundaryNorm, ListedColormap  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
-#: Colours of the ``Outcome`` codes 0..4 (RECOVERED, TIMEOUT, DEPARTED, GROUND_HIT, NONFINITE).
-OUTCOME_COLORS: tuple[str, ...] = ("#2ca02c", "#ffbf00", "#d62728", "#7f3f00", "#000000")
+#: Colours of the ``Outcome`` codes 0..4 (RECOVERED, TIMEOUT, DEPARTED, GROUND_HIT, NONFINITE). TIMEOUT and
+#: DEPARTED (left the envelope on the way) are both "not recovered by the end of the run": amber and orange,
+#: not a red that reads as a loss -- a longer run may recover them.
+OUTCOME_COLORS: tuple[str, ...] = ("#2ca02c", "#ffd24d", "#f28e2b", "#7f3f00", "#000000")
+
+
+def outcome_labels(outcome_names: tuple[str, ...], duration_s: float | None = None) -> list[str]:
+    """Legend text of each outcome code; with ``duration_s`` the unrecovered ones say "by T s"."""
+    by = f" by {duration_s:g} s" if duration_s is not None else ""
+    text = {
+        "RECOVERED": "recovered",
+        "TIMEOUT": f"not recovered{by} (stayed in the envelope)",
+        "DEPARTED": f"not recovered{by} (left the envelope on the way)",
+        "GROUND_HIT": "hit the ground",
+        "NONFINITE": "non-finite state",
+    }
+    return [text.get(n, n.lower()) for n in outcome_names]
 
 
 def _axes_row(n: int, height_in: float = 4.4) -> tuple[plt.Figure, np.ndarray]:
@@ -40,6 +55,7 @@ def plot_outcome_maps(
     y_label: str,
     path: str | Path,
     title: str = "",
+    duration_s: float | None = None,
 ) -> Path:
     """Categorical maps of the outcome code per controller (green = recovered).
 
@@ -51,6 +67,7 @@ def plot_outcome_maps(
         x_label, y_label: axis labels with units.
         path: PNG path.
         title: figure title.
+        duration_s: run length, s: unrecovered outcomes are labelled "not recovered by T s".
     """
     n_codes = len(outcome_names)
     cmap = ListedColormap(OUTCOME_COLORS[:n_codes])
@@ -61,8 +78,9 @@ def plot_outcome_maps(
         ax.set_title(f"{name}: recovered {100.0 * np.mean(code == 0):.1f}%")
         ax.set_xlabel(x_label)
     axes[0].set_ylabel(y_label)
-    handles = [Patch(color=OUTCOME_COLORS[i], label=n.lower()) for i, n in enumerate(outcome_names)]
-    fig.legend(handles=handles, loc="outside lower center", ncol=n_codes, fontsize=8, frameon=False)
+    labels = outcome_labels(outcome_names, duration_s)
+    handles = [Patch(color=OUTCOME_COLORS[i], label=lab) for i, lab in enumerate(labels)]
+    fig.legend(handles=handles, loc="outside lower center", ncol=min(n_codes, 3), fontsize=8, frameon=False)
     fig.suptitle(title or "recovery outcome", fontsize=10)
     return _save(fig, path)
 

@@ -138,30 +138,102 @@ def export_npz(path: str | Path, policy: Policy) -> Path:
     return path
 
 
-def _load_npz(path: Path) -> Policy:
+#: ``meta`` keys a policy ``.npz`` must hold, and the largest layer width / input size accepted.
+NPZ_META_KEYS = ("format", "observation_size", "action_size", "hidden_sizes", "normalize_observations")
+MAX_LAYER_WIDTH = 65_536
+_ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
+
+
+def _read_npz_arrays(path: Path) -> dict[str, np.ndarray]:
+    """All arrays of a ``.npz`` (never unpickling); UsageError naming the file and what is wrong."""
+    name = str(path)
+    size = path.stat().st_size
+    if size == 0:
+        raise UsageError(f"policy file {name!r} is empty (0 bytes); expected a harv_jax policy .npz")
+    with path.open("rb") as f:
+        head = f.read(4)
+    if head not in _ZIP_MAGIC:
+        raise UsageError(
+            f"policy file {name!r} is not a .npz archive (no zip header); expected a harv_jax policy .npz"
+        )
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}
-    except (OSError, ValueError) as e:
-        raise UsageError(f"policy file {str(path)!r} is unreadable ({e})") from None
+    except Exception as e:  # zipfile, zlib, numpy and OS errors of a damaged archive
+        text = str(e)
+        if "pickle" in text:
+            raise UsageError(f"policy file {name!r} holds Python objects, which are never loaded; "
+                             "expected plain arrays as written by harv-jax train") from None  # fmt: skip
+        raise UsageError(f"policy file {name!r} is truncated or damaged ({type(e).__name__})") from None
+    return arrays
+
+
+def _npz_meta(name: str, arrays: dict[str, np.ndarray]) -> dict[str, Any]:
+    """The ``meta`` JSON of a policy ``.npz``, checked: format/version, sizes, flags."""
     if "meta" not in arrays:
-        raise UsageError(f"{str(path)!r} is not a harv_jax policy (no meta)")
-    meta = json.loads(str(arrays.pop("meta")))
+        raise UsageError(f"{name!r} is not a harv_jax policy (no 'meta' entry)")
+    try:
+        meta = json.loads(str(arrays.pop("meta")))
+    except json.JSONDecodeError:
+        raise UsageError(f"{name!r}: 'meta' is not valid JSON") from None
+    if not isinstance(meta, dict):
+        raise UsageError(f"{name!r}: 'meta' must be a JSON object")
     if meta.get("format") != NPZ_FORMAT:
-        raise UsageError(f"{str(path)!r} has format {meta.get('format')!r}; this code reads {NPZ_FORMAT}")
+        raise UsageError(f"{name!r} has format {meta.get('format')!r}; this code reads {NPZ_FORMAT}")
+    missing = [k for k in NPZ_META_KEYS if k not in meta]
+    if missing:
+        raise UsageError(f"{name!r}: meta lacks {', '.join(missing)}; needs {', '.join(NPZ_META_KEYS)}")
+    sizes = {"observation_size": meta["observation_size"], "action_size": meta["action_size"]}
+    hidden = meta["hidden_sizes"]
+    if not isinstance(hidden, list) or not hidden:
+        raise UsageError(f"{name!r}: hidden_sizes {hidden!r} must be a non-empty list of layer widths")
+    sizes.update({f"hidden_sizes[{i}]": h for i, h in enumerate(hidden)})
+    for key, v in sizes.items():
+        if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_LAYER_WIDTH:
+            raise UsageError(f"{name!r}: {key} {v!r} must be an integer in [1, {MAX_LAYER_WIDTH}]")
+    if not isinstance(meta["normalize_observations"], bool):
+        raise UsageError(
+            f"{name!r}: normalize_observations {meta['normalize_observations']!r} must be true/false"
+        )
+    return meta
+
+
+def _check_array(name: str, key: str, x: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """``x`` if it is a finite float array of ``shape``; else UsageError naming the entry."""
+    if x.shape != tuple(shape):
+        raise UsageError(f"{name!r}: {key} has shape {x.shape}, expected {tuple(shape)}")
+    if not np.issubdtype(x.dtype, np.floating):
+        raise UsageError(f"{name!r}: {key} has dtype {x.dtype}, expected floating point")
+    if not np.all(np.isfinite(x)):
+        raise UsageError(f"{name!r}: {key} holds non-finite values (NaN or inf); the policy is unusable")
+    return x
+
+
+def _load_npz(path: Path) -> Policy:
+    name = str(path)
+    arrays = _read_npz_arrays(path)
+    meta = _npz_meta(name, arrays)
     networks = make_ppo_networks(meta["observation_size"], meta["action_size"], tuple(meta["hidden_sizes"]))
     template = jax.eval_shape(networks.init, jax.random.key(0))
     heads = {}
     for head, t in (("policy", template.policy), ("value", template.value)):
         flat_t = traverse_util.flatten_dict(t["params"], sep="/")
         flat = {}
-        for name, leaf in flat_t.items():
-            key = f"{head}/{name.removeprefix('mlp/')}"
-            if key not in arrays or arrays[key].shape != leaf.shape:
-                got = arrays[key].shape if key in arrays else "missing"
-                raise UsageError(f"{str(path)!r}: {key} is {got}, expected {leaf.shape}")
-            flat[name] = jnp.asarray(arrays[key])
+        for leaf_name, leaf in flat_t.items():
+            key = f"{head}/{leaf_name.removeprefix('mlp/')}"
+            if key not in arrays:
+                raise UsageError(
+                    f"{name!r} lacks the array {key} (shape {leaf.shape}); not a complete policy"
+                )
+            flat[leaf_name] = jnp.asarray(_check_array(name, key, arrays[key], leaf.shape))
         heads[head] = {"params": traverse_util.unflatten_dict(flat, sep="/")}
+    n_obs = meta["observation_size"]
+    for key in ("obs_mean", "obs_std"):
+        if key not in arrays:
+            raise UsageError(f"{name!r} lacks the array {key} (shape ({n_obs},)); not a complete policy")
+        _check_array(name, key, arrays[key], (n_obs,))
+    if meta["normalize_observations"] and not np.all(arrays["obs_std"] > 0):
+        raise UsageError(f"{name!r}: obs_std must be > 0 everywhere")
     params = PPOParams(heads["policy"], heads["value"])
     # The npz stores (mean, std); rebuild statistics with exactly that std (count 1, m2 = std^2 - eps).
     std = np.asarray(arrays["obs_std"], np.float64)
@@ -200,6 +272,10 @@ def _load_checkpoint(path: Path, seed: int) -> Policy:
         x = np.asarray(payload["leaves"][str(index[name])])[seed]
         if x.shape != leaf.shape:
             raise UsageError(f"checkpoint {path.name}: {name} is {x.shape}, expected {leaf.shape}")
+        if not np.all(np.isfinite(x)):
+            raise UsageError(
+                f"checkpoint {path.name}: {name} of seed {seed} holds NaN or inf; the policy is unusable"
+            )
         out.append(jnp.asarray(x))
     tree = jax.tree_util.tree_unflatten(treedef, out)
     meta = {"source": str(path), "seed": seed, "period": payload["period"],
@@ -235,7 +311,14 @@ def load(path: str | Path, seed: int = 0) -> Policy:
     if not p.is_file():
         raise UsageError(f"policy {str(p)!r} does not exist")
     if p.suffix == ".msgpack":
-        return _load_checkpoint(p, seed)
+        try:
+            return _load_checkpoint(p, seed)
+        except (KeyError, IndexError, TypeError) as e:
+            raise UsageError(f"checkpoint {str(p)!r} is incomplete ({type(e).__name__}: {e})") from None
+        except ValueError as e:
+            if isinstance(e, UsageError):
+                raise
+            raise UsageError(f"checkpoint {str(p)!r} is incomplete ({e})") from None
     return _load_npz(p)
 
 

@@ -19,6 +19,7 @@ import typer
 from harv_jax.commands.options import policy_option, zeta_option
 from harv_jax.errors import UsageError
 from harv_jax.policies import DEFAULT_POLICY_SPEC
+from harv_jax.numfmt import fmt_num, write_json
 
 #: Fixed upset state of the second scenario (wind axes; ft/s, rad, rad/s, ft): a nose-high (alpha 46 deg),
 #: rolling, yawing, banked upset inside the paper's reset bounds.
@@ -82,13 +83,17 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def write_tables(out_dir: Path, rows: list[dict]) -> None:
-    """compare_metrics.csv and compare_metrics.md."""
+def write_tables(out_dir: Path, rows: list[dict], setting: str = "") -> None:
+    """compare_metrics.csv and compare_metrics.md (``setting``: a sentence naming the policy, references
+    and h0, printed above the table)."""
     with (out_dir / "compare_metrics.csv").open("w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=COLUMNS)
         w.writeheader()
         w.writerows([{k: ("" if r[k] is None else r[k]) for k in COLUMNS} for r in rows])
-    lines = ["| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
+    lines = ([setting, ""] if setting else []) + [
+        "| " + " | ".join(COLUMNS) + " |",
+        "|" + "---|" * len(COLUMNS),
+    ]
     lines += ["| " + " | ".join(_fmt(r[k]) for k in COLUMNS) + " |" for r in rows]
     notes = (
         "\nTimes are from controller engagement. constraint_violations counts leaving the flight envelope "
@@ -120,6 +125,9 @@ def run_compare(
     scenarios = {"spin": "spin", "fixed": str(scen_file)}
     rows: list[dict] = []
     certificates: dict[str, dict] = {}
+    h0_ft: dict[str, float] = {}
+    learned = bool({"rl", "hybrid"} & set(controllers))
+    policy_name = (policy or DEFAULT_POLICY_SPEC) if learned else None
     for scen, arg in scenarios.items():
         runs = {}
         t_engage = None
@@ -133,25 +141,38 @@ def run_compare(
             cols.update({n: res["delta_rad"][:, i] for i, n in enumerate(CONTROL_NAMES)})
             runs[name] = cols
             t_engage = res["t_engage_s"]
+            h0_ft[scen] = float(res["x_wind"][0, 9])
             if res.get("hybrid") is not None:
-                plot_hybrid(res["t_s"], res["hybrid"], out_dir / f"{scen}_hybrid.png", t_engage)
+                plot_hybrid(
+                    res["t_s"], res["hybrid"], out_dir / f"{scen}_hybrid.png", t_engage, res["u_cmd_rad"]
+                )
             typer.echo(
-                f"[compare]     outcome {rows[-1]['outcome']}, recovery time {rows[-1]['recovery_time_s']}"
+                f"[compare]     outcome {rows[-1]['outcome']}, recovery time "
+                f"{fmt_num(rows[-1]['recovery_time_s'], unit='s', missing='- (not recovered)')}"
             )
         plot_time_histories(
             res["t_s"], runs, out_dir / f"{scen}_trajectories.png",
-            title=f"{scen}: {' vs '.join(controllers)} (alpha_d = {target_alpha} rad)",
+            title=f"{scen}: {' vs '.join(controllers)} (alpha_d = {np.degrees(target_alpha):.1f} deg"
+            + (f", policy {policy_name}" if learned else "") + ")",
             references={"alpha": target_alpha, "beta": 0.0, "mu": 0.0},
             t_marker_s=t_engage if t_engage else None,
         )  # fmt: skip
-    write_tables(out_dir, rows)
+    setting = (
+        (f"Policy of rl and hybrid: {policy_name}; hybrid zeta schedule: {zeta}. " if learned else "")
+        + f"alpha_d = {np.degrees(target_alpha):.1f} deg ({target_alpha:g} rad), beta_d = mu_d = 0; initial "
+        + "altitude h0: "
+        + ", ".join(f"{s} {h:,.0f} ft" for s, h in h0_ft.items())
+        + (f" (the spin starts at h0 and is held {spin_s:g} s before engagement)" if "spin" in h0_ft else "")
+        + "."
+    )
+    write_tables(out_dir, rows, setting)
     doc = {
         "command": "harv-jax " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
-        "controllers": controllers, "policy": policy or DEFAULT_POLICY_SPEC, "zeta_schedule": zeta,
+        "controllers": controllers, "policy": policy_name, "zeta_schedule": zeta, "h0_ft": h0_ft,
         "target_alpha_rad": target_alpha, "duration_s": duration, "spin_s": spin_s, "seed": seed,
         "dt_s": DT_S, "fixed_state": state, "rows": rows, "certificates": certificates,
     }  # fmt: skip
-    (out_dir / "compare.json").write_text(json.dumps(doc, indent=2) + "\n")
+    write_json(out_dir / "compare.json", doc)
     return rows
 
 
@@ -176,9 +197,11 @@ def register(app: typer.Typer) -> None:
         """RL vs SMC vs hybrid on the spin and a fixed state: overlaid histories, metrics table (md, csv)."""
         from harv_jax.commands.fly import load_state_file, validate_options
         from harv_jax.commands.mc import build_controller, parse_controllers
+        from harv_jax.guards import check_seed
         from harv_jax.outdir import prepare_out_dir
 
         names = parse_controllers(controller)
+        check_seed(seed)
         for name in names:
             validate_options(name, "sat", target_alpha, duration, spin_s)
             build_controller(name, policy, zeta)

@@ -11,7 +11,6 @@ the default fixed states.
 from __future__ import annotations
 
 import csv
-import json
 import math
 import shlex
 import sys
@@ -23,6 +22,7 @@ import typer
 from harv_jax.commands.options import policy_option, zeta_option
 from harv_jax.errors import UsageError
 from harv_jax.policies import DEFAULT_POLICY_SPEC
+from harv_jax.numfmt import write_json
 
 MAX_POINTS_PER_AXIS = 1000
 DT_S = 0.01
@@ -201,19 +201,21 @@ def run_envelope_map(
     plot_outcome_maps(
         x_disp, y_disp, {n: m.outcome for n, m in maps.items()}, OUTCOME_NAMES, x_label, y_label,
         out_dir / "envelope_recovery.png",
-        title=f"recovery outcome, alpha_d = {target_alpha} rad, {n_steps * DT_S:g} s\n(fixed: {fixed})",
+        title=f"recovery outcome after {n_steps * DT_S:g} s, alpha_d = {np.degrees(target_alpha):.1f} deg"
+        f"\n(fixed: {fixed})", duration_s=n_steps * DT_S,
     )  # fmt: skip
     plot_time_maps(
         x_disp, y_disp, {n: m.t_recover_s for n, m in maps.items()}, x_label, y_label,
         out_dir / "envelope_time.png",
-        title=f"recovery time (grey: not recovered), alpha_d = {target_alpha} rad\n(fixed: {fixed})",
+        title=f"recovery time (grey: not recovered by {n_steps * DT_S:g} s), alpha_d = "
+        f"{np.degrees(target_alpha):.1f} deg\n(fixed: {fixed})",
     )  # fmt: skip
     arrays = {"x_values": grid.x_values, "y_values": grid.y_values, "x0_wind": grid_states(grid)}
     for name, m in maps.items():
         arrays.update({f"{name}/{field}": np.asarray(v) for field, v in m._asdict().items()})
     np.savez_compressed(out_dir / "envelope_grid.npz", **arrays)
     write_grid_csv(out_dir / "envelope_grid.csv", grid, maps)
-    (out_dir / "envelope.json").write_text(json.dumps(doc, indent=2) + "\n")
+    write_json(out_dir / "envelope.json", doc)
     return doc
 
 
@@ -244,11 +246,15 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Recovery envelope map: outcome and recovery time over an initial-state grid, per controller."""
         from harv_jax.commands.mc import build_controller, parse_controllers, validate
+        from harv_jax.guards import check_closed_loop_batch, check_seed
         from harv_jax.outdir import prepare_out_dir
 
         names = parse_controllers(controller)
         g = build_grid(grid, n, fixed)
         validate(g.n_runs, target_alpha, duration, chunk)
+        check_seed(seed)
+        n_steps = round(duration / DT_S)
+        check_closed_loop_batch(g.n_runs, n_steps, n_steps, chunk, len(names), runs_flag="--n x --n =")
         for name in names:
             build_controller(name, policy, zeta)  # fail fast, before creating the output directory
         out_dir = prepare_out_dir(out, force)

@@ -14,6 +14,7 @@ import typer
 from harv_jax.commands.options import policy_option, zeta_option
 from harv_jax.errors import UsageError
 from harv_jax.policies import DEFAULT_POLICY_SPEC
+from harv_jax.numfmt import write_json
 
 CONTROLLERS = ("smc", "rl", "hybrid")
 SCENARIOS = ("spin", "random")
@@ -247,30 +248,69 @@ def spin_entry_controls() -> tuple[float, float, float]:
     return SPIN_CONTROLS_RAD
 
 
-def plot_hybrid(t: np.ndarray, hy: dict, path: Path, t_engage_s: float) -> None:
-    """hybrid.png: zeta and fallback, and the learned and feedback commands per surface."""
+def plot_hybrid(
+    t: np.ndarray, hy: dict, path: Path, t_engage_s: float, u_cmd_rad: np.ndarray | None = None
+) -> None:
+    """hybrid.png: zeta and fallback, and per surface the commands as applied: the learned command u_RL,
+    the command after the safety filter's position/rate box (u_cmd) and the feedback's applied share
+    u_cmd - u_RL. The unsaturated zeta u_fb (which reaches thousands of degrees in a spin) is not drawn;
+    its peak is given in the legend."""
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
+    from harv_jax.aircraft.params import U_MAX_RAD, U_MIN_RAD
     from harv_jax.dynamics import CONTROL_NAMES
     from harv_jax.units import DEG_PER_RAD
 
-    fig, axes = plt.subplots(4, 1, figsize=(10, 8), sharex=True)
-    axes[0].plot(t, hy["zeta"], lw=0.9, label="zeta")
-    axes[0].plot(t, hy["fallback"], lw=0.9, ls="--", label="fallback (SMC-only)")
+    fig, axes = plt.subplots(4, 1, figsize=(10, 9.5), sharex=True)
+    axes[0].plot(t, hy["zeta"], lw=1.2, label="zeta (authority of the feedback term)")
+    axes[0].plot(t, hy["fallback"], lw=1.0, ls="--", label="fallback (1 = SMC-only)")
     axes[0].set_ylabel("zeta / fallback")
-    axes[0].legend(loc="upper right", fontsize=8)
+    axes[0].set_ylim(-0.05, 1.1)
+    axes[0].legend(loc="center right", fontsize=8)
+    zeta_fb = hy["zeta"][:, None] * hy["u_fb_rad"]
     for j, n in enumerate(CONTROL_NAMES):
-        axes[j + 1].plot(t, hy["u_rl_rad"][:, j] * DEG_PER_RAD, lw=0.8, label=f"{n} u_RL")
-        axes[j + 1].plot(t, hy["zeta"] * hy["u_fb_rad"][:, j] * DEG_PER_RAD, lw=0.8, label=f"{n} zeta u_fb")
-        axes[j + 1].set_ylabel("deg")
-        axes[j + 1].legend(loc="upper right", fontsize=8)
+        ax = axes[j + 1]
+        u_rl = hy["u_rl_rad"][:, j] * DEG_PER_RAD
+        if u_cmd_rad is not None:
+            u_cmd = np.asarray(u_cmd_rad)[:, j] * DEG_PER_RAD
+            ax.plot(t, u_cmd, color="k", lw=2.2, alpha=0.45, zorder=2)
+            ax.plot(t, u_cmd - u_rl, color="C1", lw=1.0, ls="--", zorder=3)
+        ax.plot(t, u_rl, color="C0", lw=1.2, zorder=4)
+        lo, hi = U_MIN_RAD[j] * DEG_PER_RAD, U_MAX_RAD[j] * DEG_PER_RAD
+        for y in (lo, hi):
+            ax.axhline(y, color="grey", lw=0.7, ls="-.", zorder=1)
+        fin = np.isfinite(zeta_fb[:, j])
+        if fin.any():
+            peak = np.max(np.abs(zeta_fb[fin, j])) * DEG_PER_RAD
+            ax.set_title(f"{n}: the unsaturated feedback command |zeta u_fb| peaks at {peak:,.0f} deg "
+                         "(not drawn; the filter limits it)", fontsize=8, loc="left")  # fmt: skip
+        span = hi - lo
+        ax.set_ylim(lo - 0.1 * span, hi + 0.1 * span)
+        ax.set_ylabel(f"{n} [deg]")
     axes[-1].set_xlabel("t [s]")
+    if t_engage_s > 0:
+        axes[-1].set_xlim(max(t_engage_s - 2.0, t[0]), t[-1])  # the hybrid acts from engagement on
     for ax in axes:
         ax.grid(alpha=0.3)
         if t_engage_s > 0:
             ax.axvline(t_engage_s, color="grey", ls=":", lw=0.8)
-    fig.suptitle("hybrid: authority factor and command split")
-    fig.tight_layout()
+    handles = [Line2D([], [], color="C0", lw=1.2, label="learned command u_RL")]
+    if u_cmd_rad is not None:
+        handles += [
+            Line2D([], [], color="k", lw=2.2, alpha=0.45, label="applied command u_cmd (after the filter)"),
+            Line2D([], [], color="C1", lw=1.0, ls="--", label="feedback share u_cmd - u_RL"),
+        ]
+    handles.append(Line2D([], [], color="grey", lw=0.7, ls="-.", label="position limits"))
+    if t_engage_s > 0:
+        handles.append(
+            Line2D([], [], color="grey", ls=":", lw=0.8, label=f"engagement (t = {t_engage_s:g} s)")
+        )
+    fig.legend(
+        handles=handles, loc="upper center", ncol=3, fontsize=8, frameon=False, bbox_to_anchor=(0.5, 0.965)
+    )
+    fig.suptitle("hybrid: authority factor and the applied command split", y=0.995)
+    fig.tight_layout(rect=(0, 0, 1, 0.92))
     fig.savefig(path, dpi=90)
     plt.close(fig)
 
@@ -298,7 +338,7 @@ def write_outputs(out_dir: Path, res: dict, meta: dict) -> None:
             *(f"{n}_fb" for n in CONTROL_NAMES),
         )
         cols_out += [hy["zeta"], hy["fallback"], hy["u_rl_rad"], hy["u_fb_rad"]]
-        plot_hybrid(t, hy, out_dir / "hybrid.png", res["t_engage_s"])
+        plot_hybrid(t, hy, out_dir / "hybrid.png", res["t_engage_s"], res["u_cmd_rad"])
     table = np.column_stack(cols_out)
     np.savetxt(
         out_dir / "trajectory.csv", table, delimiter=",", header=",".join(names), comments="", fmt="%.8g"
@@ -311,7 +351,8 @@ def write_outputs(out_dir: Path, res: dict, meta: dict) -> None:
         t,
         {meta["controller"]: cols},
         out_dir / "trajectory.png",
-        title=f"harv-jax fly: {meta['controller']} from {meta['scenario']}",
+        title=f"harv-jax fly: {meta['controller']} from {meta['scenario']} "
+        f"(alpha_d = {np.degrees(ref[0]):.1f} deg)",
         references={"alpha": ref[0], "beta": ref[1], "mu": ref[2]},
         t_marker_s=t_marker,
     )
@@ -338,7 +379,7 @@ def write_outputs(out_dir: Path, res: dict, meta: dict) -> None:
         "metrics": res["metrics"],
         "certificate": res.get("certificate"),
     }
-    (out_dir / "metrics.json").write_text(json.dumps(doc, indent=2) + "\n")
+    write_json(out_dir / "metrics.json", doc)
 
 
 def register(app: typer.Typer) -> None:
@@ -365,9 +406,11 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Fly a controller closed loop: trajectory.csv, trajectory.png, sliding.png, metrics.json (and
         hybrid.png for the hybrid)."""
+        from harv_jax.guards import check_seed
         from harv_jax.outdir import prepare_out_dir
 
         validate_options(controller, switching, target_alpha, duration, spin_s)
+        check_seed(seed)
         if scenario not in SCENARIOS:
             load_state_file(Path(scenario))  # validate before creating the output directory
         if controller != "smc":

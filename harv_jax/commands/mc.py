@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import csv
-import json
 import math
 import shlex
 import sys
@@ -15,6 +14,7 @@ import typer
 from harv_jax.commands.options import policy_option, zeta_option
 from harv_jax.errors import UsageError
 from harv_jax.policies import DEFAULT_POLICY_SPEC
+from harv_jax.numfmt import write_json
 
 KNOWN_CONTROLLERS = ("smc", "rl", "hybrid")
 MAX_RUNS = 1_000_000
@@ -45,9 +45,17 @@ def build_controller(name: str, policy: str | None, zeta: str = "continuous"):
 
         return make_smc()
     if name in ("rl", "hybrid"):
+        from harv_jax.env.config import ACTION_SIZE, OBSERVATION_SIZE
         from harv_jax.policy import resolve_policy
 
-        act = resolve_policy(policy).deterministic
+        pol = resolve_policy(policy)
+        sizes = (pol.networks.observation_size, pol.networks.action_size)
+        if sizes != (OBSERVATION_SIZE, ACTION_SIZE):
+            raise UsageError(
+                f"--policy {policy!r} maps {sizes[0]} observations to {sizes[1]} actions; this aircraft's "
+                f"controller needs {OBSERVATION_SIZE} -> {ACTION_SIZE}"
+            )
+        act = pol.deterministic
         if name == "rl":
             from harv_jax.control.rl import make_rl_controller
 
@@ -122,24 +130,32 @@ def run_monte_carlo(
     zeta: str = "continuous",
     save_trajectories: bool = False,
 ) -> dict:
-    """Run the Monte Carlo and write summary.json, bands_*.png/.csv, terminal_errors.png, runs.csv (and
+    """Run the Monte Carlo and write summary.json, bands_*.png/.csv (bands_all.png: every controller on
+    one figure; all band plots share one y-scale per variable), terminal_errors.png, runs.csv (and
     trajectories_*.npz: t_s [T], alpha_beta_mu_rad [N, T, 3] every ``record_every`` steps, if asked)."""
     import jax
     import jax.numpy as jnp
 
     from harv_jax.aircraft import harv
     from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, summarize_controller
-    from harv_jax.plotting import plot_mc_bands, plot_terminal_errors, write_bands_csv
+    from harv_jax.plotting import (
+        band_limits_deg,
+        plot_mc_bands,
+        plot_mc_bands_overlay,
+        plot_terminal_errors,
+        write_bands_csv,
+    )
+    from harv_jax.scenarios import DEFAULT_H0_FT as H0_FT  # every run starts at h0
 
     ctrls = {name: build_controller(name, policy, zeta) for name in controllers}
     dt_s = 0.01
     n_steps = int(round(duration / dt_s))
     n_steps -= n_steps % record_every
     reference = jnp.array([target_alpha, 0.0, 0.0])
-    inputs = sample_mc_inputs(jax.random.key(seed), runs, harv(), randomize=randomize)
+    inputs = sample_mc_inputs(jax.random.key(seed), runs, harv(), randomize=randomize, h0_ft=H0_FT)
     summary: dict = {
         "runs": runs, "target_alpha_rad": target_alpha, "duration_s": n_steps * dt_s, "seed": seed,
-        "randomize": randomize, "dt_s": dt_s,
+        "randomize": randomize, "dt_s": dt_s, "h0_ft": H0_FT,
         "policy": (policy or DEFAULT_POLICY_SPEC) if {"rl", "hybrid"} & set(controllers) else None,
         "zeta_schedule": zeta if "hybrid" in controllers else None,
         "devices": [str(d) for d in jax.local_devices()],
@@ -165,18 +181,21 @@ def run_monte_carlo(
             np.savez_compressed(
                 out_dir / f"trajectories_{name}.npz", t_s=t_rec, alpha_beta_mu_rad=out.history
             )
-        plot_mc_bands(
-            t_rec,
-            out.history,
-            np.asarray(reference),
-            out_dir / f"bands_{name}.png",
-            title=f"{name}: Monte Carlo bands (N = {runs}, alpha_d = {target_alpha} rad)",
-        )
+    histories = {n: o.history for n, o in outs.items()}
+    ref = np.asarray(reference)
+    lims = band_limits_deg(histories, ref)  # one y-scale per variable across controllers
+    setting = f"N = {runs}, alpha_d = {np.degrees(target_alpha):.1f} deg, h0 = {H0_FT:,.0f} ft"
+    for name, h in histories.items():
+        plot_mc_bands(t_rec, h, ref, out_dir / f"bands_{name}.png",
+                      title=f"{name}: Monte Carlo bands ({setting})", ylims_deg=lims)  # fmt: skip
+    if len(histories) > 1:
+        plot_mc_bands_overlay(t_rec, histories, ref, out_dir / "bands_all.png",
+                              title=f"{', '.join(histories)}: Monte Carlo bands ({setting})")  # fmt: skip
     plot_terminal_errors(
         {n: np.degrees(o.terminal_error_rad) for n, o in outs.items()}, out_dir / "terminal_errors.png"
     )
     write_runs_csv(out_dir / "runs.csv", np.asarray(inputs.x0_wind), outs)
-    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2))
+    write_json(out_dir / "summary.json", summary)
     return summary
 
 
@@ -199,10 +218,13 @@ def register(app: typer.Typer) -> None:
         ),
     ) -> None:
         """Monte Carlo: same sampled aircraft/initial states for every controller; summary + figures."""
+        from harv_jax.guards import check_closed_loop_batch, check_seed
         from harv_jax.outdir import prepare_out_dir
 
         names = parse_controllers(controller)
         validate(runs, target_alpha, duration, chunk)
+        check_seed(seed)
+        check_closed_loop_batch(runs, round(duration / 0.01), 10, chunk, len(names))
         for name in names:
             build_controller(name, policy, zeta)  # fail fast, before creating the output directory
         out_dir = prepare_out_dir(out, force)

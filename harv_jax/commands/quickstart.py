@@ -29,23 +29,30 @@ def register(app: typer.Typer) -> None:
         """Spin comparison and a Monte Carlo of SMC, RL and hybrid with the shipped policy, plus a report."""
         from harv_jax.commands.compare import run_compare
         from harv_jax.commands.mc import build_controller, run_monte_carlo, validate
+        from harv_jax.guards import check_closed_loop_batch, check_seed
+        from harv_jax.numfmt import fmt_num
         from harv_jax.outdir import prepare_out_dir
 
         validate(runs, 0.349, 60.0, 250)
+        check_seed(seed)
+        check_closed_loop_batch(runs, 6000, 10, 250, 3)
         names = ["smc", "rl", "hybrid"]
         for name in names:
             build_controller(name, policy, zeta)
         out_dir = prepare_out_dir(out, force)
         t0 = time.perf_counter()
         typer.echo("[quickstart] 1/3 spin comparison: 30 s developed spin, then RL, SMC and hybrid recover")
-        (out_dir / "compare").mkdir()
+        prepare_out_dir(out_dir / "compare")  # with the run marker: --force may replace it later
         rows = run_compare(names, policy, zeta, 0.349, 60.0, 30.0, None, seed, out_dir / "compare")
         for r in rows:
             if r["scenario"] == "spin":
                 t_rec = r["recovery_time_s"]
-                typer.echo(f"[quickstart]     {r['controller']}: {r['outcome']}, recovery time {t_rec}")
+                typer.echo(
+                    f"[quickstart]     {r['controller']}: {r['outcome']}, recovery time "
+                    f"{fmt_num(t_rec, unit='s', missing='- (not recovered)')}"
+                )
         typer.echo(f"[quickstart] 2/3 Monte Carlo: {runs} runs x 60 s from the paper's reset bounds")
-        (out_dir / "mc").mkdir()
+        prepare_out_dir(out_dir / "mc")  # with the run marker: --force may replace it later
         s = run_monte_carlo(names, policy, runs, 0.349, 60.0, seed, False, out_dir / "mc", zeta=zeta)
         typer.echo("[quickstart] 3/3 report")
         report = _write_report(out_dir)

@@ -20,6 +20,7 @@ from __future__ import annotations
 import base64
 import html
 import json
+import math
 import os
 import re
 import shlex
@@ -228,6 +229,10 @@ def fmt(v: Any, spec: str = ".4g") -> str:
     return format(x, spec)
 
 
+def _deg(rad: Any) -> float | None:
+    return None if rad is None else math.degrees(float(rad))
+
+
 def _has(d: Any, path: Sequence[str]) -> bool:
     for k in path:
         if not isinstance(d, dict) or k not in d:
@@ -318,6 +323,8 @@ def mc_section(doc: Doc, summary: dict) -> None:
     settings = [
         ("runs", fmt(summary.get("runs"), "int")),
         ("target alpha [rad]", fmt(summary.get("target_alpha_rad"))),
+        ("target alpha [deg]", fmt(_deg(summary.get("target_alpha_rad")), ".1f")),
+        ("initial altitude h0 [ft]", fmt(summary.get("h0_ft", 25_000.0), "int")),
         ("duration [s]", fmt(summary.get("duration_s"))),
         ("step [s]", fmt(summary.get("dt_s"))),
         ("seed", str(summary["seed"]) if summary.get("seed") is not None else "–"),
@@ -395,6 +402,7 @@ def fly_section(doc: Doc, metrics_doc: dict) -> None:
     m = dict(metrics_doc.get("metrics") or {})
     if "outcome_name" in m:
         m["outcome"] = m.pop("outcome_name")  # the name instead of the integer code
+    m.pop("outcome_code", None)
     rows = [(k, cell(v)) for k, v in m.items()]
     if rows:
         doc.h(3, "Metrics (lists: per channel alpha, beta, mu or de, da, dr)")

@@ -42,15 +42,25 @@ def parse_assignments(text: str, allowed: dict[str, float], what: str) -> dict[s
     return out
 
 
+#: Physically meaningful initial states (name -> (low, high, unit)): speeds up to about Mach 2.7, body rates
+#: beyond any spin or tumble of this aircraft excluded, altitudes inside the atmosphere model (troposphere
+#: and lower stratosphere, 20 km).
+STATE_LIMITS = {
+    "V": (1.0, 3000.0, "ft/s"), "alpha": (-math.pi, math.pi, "rad"), "beta": (-1.5707, 1.5707, "rad"),
+    "p": (-10.0, 10.0, "rad/s"), "q": (-10.0, 10.0, "rad/s"), "r": (-10.0, 10.0, "rad/s"),
+    "mu": (-2 * math.pi, 2 * math.pi, "rad"), "gamma": (-math.pi / 2, math.pi / 2, "rad"),
+    "chi": (-2 * math.pi, 2 * math.pi, "rad"), "h": (0.0, 65_000.0, "ft"),
+}  # fmt: skip
+
+
 def validate_state(state: dict[str, float]) -> None:
-    """Raise UsageError for a physically meaningless initial state."""
-    if state["V"] <= 0:
-        raise UsageError(f"state V={state['V']} must be > 0 ft/s")
-    for name in ("alpha", "beta"):
-        if abs(state[name]) > math.pi:
-            raise UsageError(f"state {name}={state[name]} rad is outside [-pi, pi]")
-    if abs(state["beta"]) >= math.pi / 2:
-        raise UsageError(f"state beta={state['beta']} rad must be inside (-pi/2, pi/2)")
+    """Raise UsageError for a physically meaningless initial state (outside :data:`STATE_LIMITS`)."""
+    for name, v in state.items():
+        if name not in STATE_LIMITS:
+            continue
+        lo, hi, unit = STATE_LIMITS[name]
+        if not (math.isfinite(v) and lo <= v <= hi):
+            raise UsageError(f"state {name}={v} {unit} is outside the allowed [{lo:g}, {hi:g}] {unit}")
 
 
 def validate_controls(controls: dict[str, float]) -> None:
@@ -106,6 +116,7 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Open-loop simulation with fixed controls: writes trajectory.csv and trajectory.png."""
         from harv_jax.dynamics import CONTROL_NAMES, WIND_STATE_NAMES
+        from harv_jax.guards import check_simulate
         from harv_jax.outdir import prepare_out_dir
         from harv_jax.plotting import plot_time_histories
 
@@ -119,6 +130,7 @@ def register(app: typer.Typer) -> None:
             raise UsageError(f"--dt {dt} must be in (0, 0.05] s")
         if not 0.0 <= throttle <= 1.0:
             raise UsageError(f"--throttle {throttle} is outside [0, 1]")
+        check_simulate(duration, dt)
         out_dir = prepare_out_dir(out, force)
         t, cols = run_simulate(s, c, duration, dt, throttle)
         names = ("t",) + WIND_STATE_NAMES + CONTROL_NAMES

@@ -107,14 +107,14 @@ class HybridConfig:
     """Static options (changing them recompiles).
 
     Attributes:
-        schedule: zeta schedule: ``hysteresis`` (paper), ``continuous``, ``always`` (zeta = 1),
-            ``never`` (zeta = 0, the filtered RL-only law).
+        schedule: zeta schedule: ``continuous`` (default, as the CLI), ``hysteresis`` (the paper's tube),
+            ``always`` (zeta = 1), ``never`` (zeta = 0, the filtered RL-only law).
         smc: SMCConfig of the feedback term.
         supervisor: enable the fallback supervisor.
         window_steps: length of the supervisor's intervention window, steps.
     """
 
-    schedule: ZetaSchedule = "hysteresis"
+    schedule: ZetaSchedule = "continuous"
     smc: SMCConfig = SMCConfig()
     supervisor: bool = True
     window_steps: int = 100

@@ -23,7 +23,7 @@ import jax.numpy as jnp
 from harv_jax.aircraft.aero import coefficients
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.dynamics.atmosphere import RHO_SL_SLUGFT3, density_slugft3
-from harv_jax.dynamics.state import BodyState
+from harv_jax.dynamics.state import BodyState, check_shape
 
 #: Airspeed floor for the non-dimensional rates p b / (2V) etc., ft/s (guards V -> 0 only).
 V_FLOOR_FPS = 1.0
@@ -102,7 +102,12 @@ def derivatives(
 
     Returns:
         [10] time derivative. Singular at V = 0, cos(beta) = 0, cos(gamma) = 0.
+
+    Raises:
+        ValueError: ``x`` is not [10] or ``u`` not [3].
     """
+    check_shape(x, (10,), "state x [V, alpha, beta, p, q, r, mu, gamma, chi, h]")
+    check_shape(u, (3,), "control u [de, da, dr]")
     vt, alpha, beta = x[0], x[1], x[2]
     pqr = x[3:6]
     p, r = pqr[0], pqr[2]

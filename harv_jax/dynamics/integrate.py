@@ -7,7 +7,7 @@ import jax.numpy as jnp
 
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.dynamics.eom import body_derivatives, derivatives
-from harv_jax.dynamics.state import BodyState, from_wind, to_wind
+from harv_jax.dynamics.state import BodyState, check_shape, from_wind, to_wind
 
 DEFAULT_DT_S = 0.01
 
@@ -60,6 +60,7 @@ def rk4_step(
     Returns:
         The stepped state, of the same kind as ``x``.
     """
+    check_shape(u, (3,), "control u [de, da, dr]")
     if isinstance(x, BodyState):
         return rk4_body_step(x, u, params, dt_s, wind_body_fps)
     body = from_wind(x)
@@ -104,6 +105,8 @@ def rollout(
     Returns:
         [T + 1, 10] wind-axis states (initial state first). x_N, y_E are not returned.
     """
+    if jnp.ndim(u_seq) != 2 or jnp.shape(u_seq)[1] != 3:
+        raise ValueError(f"u_seq has shape {list(jnp.shape(u_seq))}, expected [T, 3] (de, da, dr per step)")
     body0 = x0 if isinstance(x0, BodyState) else from_wind(x0)
 
     def step(s, u):

@@ -124,8 +124,17 @@ def dcm_to_quat(c_nb: jnp.ndarray) -> jnp.ndarray:
     return q * jnp.where(q[0] < 0, -1.0, 1.0)
 
 
+def check_shape(x: object, shape: tuple[int, ...], what: str) -> None:
+    """Raise ValueError unless ``x`` has the static ``shape`` (checked at trace time, so jit and vmap work:
+    under vmap ``x`` is one aircraft's array). ``what`` names the argument and its layout."""
+    got = tuple(jnp.shape(x))
+    if got != tuple(shape):
+        raise ValueError(f"{what} has shape {list(got)}, expected {list(shape)} (vmap for a batch)")
+
+
 def from_wind(x: jnp.ndarray) -> BodyState:
     """Wind-axis state [10] -> BodyState (x_N = y_E = 0)."""
+    check_shape(x, (10,), "wind state x [V, alpha, beta, p, q, r, mu, gamma, chi, h]")
     vt, alpha, beta = x[0], x[1], x[2]
     mu, gamma, chi, h = x[6], x[7], x[8], x[9]
     c_wb = dcm_wind_from_body(alpha, beta)

@@ -322,7 +322,8 @@ def compute_metrics(
 
 
 def metrics_to_dict(m: RunMetrics) -> dict[str, Any]:
-    """One run's metrics as JSON-ready Python values (NaN -> None, outcome code -> name too)."""
+    """One run's metrics as JSON-ready Python values (NaN -> None; ``outcome`` is the name, e.g.
+    ``RECOVERED``, ``outcome_code`` the ``Outcome`` integer)."""
 
     def conv(v):
         a = np.asarray(v)
@@ -336,7 +337,10 @@ def metrics_to_dict(m: RunMetrics) -> dict[str, Any]:
         return [None if not np.isfinite(z) else float(z) for z in a.ravel()]
 
     out = {k: conv(getattr(m, k)) for k in m.__dataclass_fields__}
-    out["outcome_name"] = OUTCOME_NAMES[int(np.asarray(m.outcome))]
+    code = int(np.asarray(m.outcome))
+    out["outcome"] = OUTCOME_NAMES[code]
+    out["outcome_code"] = code
+    out["outcome_name"] = OUTCOME_NAMES[code]  # older readers
     return out
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from harv_jax.errors import UsageError
+from harv_jax.guards import check_seed, check_train
 
 #: Folder of the preset files in a source checkout (absent in a non-editable install).
 PRESET_DIR = Path(__file__).resolve().parents[2] / "experiments" / "presets"
@@ -117,6 +118,9 @@ def validate(cfg: PPOConfig) -> PPOConfig:
         raise UsageError(
             f"--minibatches {cfg.minibatches} must divide num_envs * unroll = {cfg.num_envs * cfg.unroll}"
         )
+    check_seed(cfg.seed)
+    check_train(cfg.total_steps, cfg.num_envs, cfg.unroll, cfg.num_seeds,
+                total_updates(cfg) * cfg.epochs * cfg.minibatches)  # fmt: skip
     return cfg
 
 

@@ -1,0 +1,132 @@
+"""Resource and range guards checked before anything is allocated or compiled.
+
+Each guard raises :class:`~harv_jax.errors.UsageError` (a ValueError) with one line naming the value, what
+is allowed and why. Memory estimates are deliberately rough upper bounds (bytes per stored float times the
+arrays a run keeps), compared with a fraction of the machine's physical memory.
+"""
+
+from __future__ import annotations
+
+import os
+
+from harv_jax.errors import UsageError
+
+INT32_MAX = 2**31 - 1
+#: Seeds accepted by every command (``jax.random.key`` takes them without overflow on any backend).
+SEED_RANGE = (0, INT32_MAX)
+#: Fraction of physical memory a single command may plan to use.
+MEMORY_FRACTION = 0.5
+BYTES_PER_FLOAT = 4
+#: Host bytes per simulate step: the float32 rollout (10 states), the float64 table (14 columns) written
+#: to CSV and the plotting copies.
+SIMULATE_BYTES_PER_STEP = 10 * 4 + 14 * 8 * 3
+#: Floats per run and step of one closed-loop chunk kept at full rate (state, surfaces, commands, info).
+CLOSED_LOOP_FLOATS_PER_STEP = 48
+#: Floats per env and unrolled step of one PPO update (transition, advantages, shuffled minibatch copies).
+TRAIN_FLOATS_PER_TRANSITION = 3 * 40
+#: Floats per env of the env state (aircraft parameters, tables, actuator and filter state, statistics).
+TRAIN_FLOATS_PER_ENV = 4096
+
+
+def machine_memory_bytes() -> int:
+    """Physical memory of this machine, bytes (``os.sysconf``; 8 GiB if the platform does not say)."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return 8 * 2**30
+
+
+def _gib(n_bytes: float) -> str:
+    return f"{n_bytes / 2**30:.3g} GiB"
+
+
+def check_memory(need_bytes: float, what: str, hint: str) -> None:
+    """Raise UsageError if ``need_bytes`` exceeds :data:`MEMORY_FRACTION` of the machine's memory.
+
+    Args:
+        need_bytes: estimated bytes the run would hold.
+        what: the flags that set the size, as the user typed them (``"--duration 1e+07 s at --dt 0.01 s"``).
+        hint: what to change (``"shorten --duration or raise --dt"``).
+    """
+    budget = MEMORY_FRACTION * machine_memory_bytes()
+    if need_bytes > budget:
+        raise UsageError(
+            f"{what} needs about {_gib(need_bytes)} of memory, more than the {_gib(budget)} allowed "
+            f"({MEMORY_FRACTION:.0%} of this machine's {_gib(machine_memory_bytes())}); {hint}"
+        )
+
+
+def check_seed(seed: int, flag: str = "--seed") -> int:
+    """Return ``seed`` if it is an integer in :data:`SEED_RANGE`, else raise UsageError."""
+    lo, hi = SEED_RANGE
+    if isinstance(seed, bool) or not isinstance(seed, int) or not lo <= seed <= hi:
+        raise UsageError(f"{flag} {seed!r} is outside the allowed seeds [{lo}, {hi}]")
+    return seed
+
+
+def check_steps(n_steps: int, what: str, hint: str) -> None:
+    """Raise UsageError if a step count does not fit the int32 counters of the compiled loops."""
+    if n_steps > INT32_MAX:
+        raise UsageError(f"{what} is {n_steps:,} steps, more than the {INT32_MAX:,} allowed; {hint}")
+
+
+def check_simulate(duration_s: float, dt_s: float) -> None:
+    """Guard ``harv-jax simulate``: step count and host memory of the trajectory (rollout, CSV table)."""
+    n_steps = round(duration_s / dt_s)
+    what = f"--duration {duration_s:g} s at --dt {dt_s:g} s"
+    check_steps(n_steps, what, "shorten --duration or raise --dt")
+    check_memory(n_steps * SIMULATE_BYTES_PER_STEP, f"{what} ({n_steps:,} steps)",
+                 "shorten --duration or raise --dt")  # fmt: skip
+
+
+def check_closed_loop_batch(
+    runs: int, n_steps: int, record_every: int, chunk: int, n_controllers: int, runs_flag: str = "--runs"
+) -> None:
+    """Guard a Monte Carlo / envelope: full-rate data of one chunk plus every run's decimated history.
+
+    Args:
+        runs: runs per controller.
+        n_steps: plant steps per run.
+        record_every: decimation of the kept alpha/beta/mu history (``n_steps``: one sample per run).
+        chunk: runs per compiled call.
+        n_controllers: controllers flown (their histories are all kept).
+        runs_flag: the flag that set ``runs`` (``--runs``, ``--n``).
+    """
+    chunk = min(chunk, runs)
+    check_steps(chunk * n_steps, f"--chunk {chunk} x {n_steps:,} steps per run", "lower --chunk")
+    chunk_bytes = chunk * n_steps * CLOSED_LOOP_FLOATS_PER_STEP * BYTES_PER_FLOAT
+    history_bytes = n_controllers * runs * (n_steps // max(record_every, 1) + 1) * 3 * BYTES_PER_FLOAT
+    check_memory(
+        chunk_bytes + history_bytes,
+        f"{runs_flag} {runs:,} x {n_steps:,} steps x {n_controllers} controller(s) (--chunk {chunk})",
+        "lower the runs, --duration or --chunk",
+    )
+
+
+def check_train(total_steps: int, num_envs: int, unroll: int, num_seeds: int, gradient_steps: int) -> None:
+    """Guard ``harv-jax train``: int32 sizes of the compiled update and the memory of one update.
+
+    Args:
+        total_steps: env steps per seed (``--steps``).
+        num_envs: parallel envs per seed (``--num-envs``).
+        unroll: rollout length per update.
+        num_seeds: learners trained together (``--seeds``).
+        gradient_steps: optimizer steps of the whole run (updates x epochs x minibatches), counted in int32
+            by the optimizer's schedule.
+    """
+    if gradient_steps > INT32_MAX:
+        raise UsageError(
+            f"--steps {total_steps:,} needs {gradient_steps:,} optimizer steps, more than the {INT32_MAX:,} "
+            "the optimizer counts; lower --steps or raise --num-envs / --unroll"
+        )
+    transitions = num_seeds * num_envs * unroll
+    if transitions > INT32_MAX:
+        raise UsageError(
+            f"--num-envs {num_envs:,} x --unroll {unroll} x --seeds {num_seeds} = {transitions:,} "
+            f"transitions per update, more than the {INT32_MAX:,} an array may index; lower --num-envs"
+        )
+    need = (
+        num_seeds * num_envs * (unroll * TRAIN_FLOATS_PER_TRANSITION + TRAIN_FLOATS_PER_ENV) * BYTES_PER_FLOAT
+    )
+    check_memory(need, f"--num-envs {num_envs:,} x --unroll {unroll} x --seeds {num_seeds}",
+                 "lower --num-envs or --seeds")  # fmt: skip
