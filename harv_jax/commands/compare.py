@@ -18,8 +18,8 @@ import typer
 
 from harv_jax.commands.options import policy_option, zeta_option
 from harv_jax.errors import UsageError
-from harv_jax.policies import DEFAULT_POLICY_SPEC
 from harv_jax.numfmt import fmt_num, write_json
+from harv_jax.policies import DEFAULT_POLICY_SPEC
 
 #: Fixed upset state of the second scenario (wind axes; ft/s, rad, rad/s, ft): a nose-high (alpha 46 deg),
 #: rolling, yawing, banked upset inside the paper's reset bounds.

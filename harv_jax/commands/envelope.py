@@ -21,8 +21,8 @@ import typer
 
 from harv_jax.commands.options import policy_option, zeta_option
 from harv_jax.errors import UsageError
-from harv_jax.policies import DEFAULT_POLICY_SPEC
 from harv_jax.numfmt import write_json
+from harv_jax.policies import DEFAULT_POLICY_SPEC
 
 MAX_POINTS_PER_AXIS = 1000
 DT_S = 0.01
