@@ -128,9 +128,12 @@ def main() -> None:
     ap.add_argument("--mc-runs", type=int, default=256)
     ap.add_argument("--mc-seed", type=int, default=7)
     ap.add_argument("--out", type=Path, default=HERE / "results")
+    ap.add_argument("--steps", type=int, default=None, help="env steps per seed (default: the preset's)")
     ap.add_argument("--skip-train", action="store_true", help="only (re)do the Monte Carlos and tables")
     args = ap.parse_args()
     base = tomllib.loads(PRESET.read_text())
+    if args.steps:
+        base["ppo"]["total_steps"] = args.steps
     args.out.mkdir(parents=True, exist_ok=True)
     results = (
         json.loads((args.out / "ablation.json").read_text()) if (args.out / "ablation.json").exists() else {}
