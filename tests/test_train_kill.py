@@ -125,7 +125,7 @@ def test_resume_plan_messages(full_run, tmp_path):
 
 def _watch(**kw) -> tuple[Watchdog, threading.Event, list[str]]:
     fired, reasons = threading.Event(), []
-    dog = Watchdog(lambda r: (reasons.append(r), fired.set()), poll_s=0.05, backstop_s=None, **kw)
+    dog = Watchdog(lambda r: (reasons.append(r), fired.set()), poll_s=0.1, backstop_s=None, **kw)
     return dog, fired, reasons
 
 
@@ -147,12 +147,32 @@ def test_watchdog_wall_limit_and_beats():
 
 
 def test_watchdog_no_cpu_use_is_a_stall_busy_is_not():
-    dog, fired, reasons = _watch(limit_s=0, idle_s=0.5)
+    dog, fired, reasons = _watch(limit_s=0, idle_s=1.0)
     with dog:
-        _spin(1.5)  # busy: not a stall however long
+        _spin(3.0)  # busy: not a stall however long
         assert not fired.is_set()
-        assert fired.wait(5.0)  # this thread now waits without using CPU: a stall after 0.5 s
+        assert fired.wait(10.0)  # this thread now waits without using CPU: a stall after 1 s
     assert "no CPU use" in reasons[0]
+
+
+def test_watchdog_ignores_busy_helper_threads():
+    """A busy Python helper thread (like the progress display's refresh) does not hide an idle main thread."""
+    stop = threading.Event()
+
+    def busy() -> None:
+        while not stop.is_set():
+            _spin(0.05)
+
+    helper = threading.Thread(target=busy, daemon=True)
+    helper.start()
+    try:
+        dog, fired, reasons = _watch(limit_s=0, idle_s=1.0)
+        with dog:
+            assert fired.wait(10.0)
+        assert "no CPU use" in reasons[0]
+    finally:
+        stop.set()
+        helper.join()
 
 
 def test_watchdog_automatic_limit():

@@ -177,7 +177,9 @@ def read(path: str | Path) -> dict[str, Any]:
     try:
         payload = serialization.msgpack_restore(p.read_bytes())
     except Exception as e:  # msgpack raises several types on corrupt input
-        raise UsageError(f"checkpoint {str(p)!r} is unreadable ({type(e).__name__})") from None
+        raise UsageError(
+            f"checkpoint {str(p)!r} is unreadable (truncated or damaged: {type(e).__name__})"
+        ) from None
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
         raise UsageError(f"{str(p)!r} is not a harv_jax PPO checkpoint")
     if payload.get("version") != VERSION:

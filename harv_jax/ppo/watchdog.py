@@ -6,24 +6,31 @@ calls ``on_stall(reason)`` when either
 * no beat came for ``limit_s`` seconds of wall time (``limit_s=None``: automatic, ``first_limit_s`` until
   the first beat, which includes compilation, then ``max(min_limit_s, 20 x`` the first period's time``)``),
   or
-* the whole process used less than ``idle_cpu_fraction`` of one core for ``idle_s`` seconds in a row
-  while a period was due. A period always keeps at least one core busy; a deadlocked XLA runtime (every
-  thread parked on a futex, the state of the one CPU hang we observed) uses none, so this finds that hang
-  within minutes whatever the wall-time limit.
+* the process's compute threads used less than ``idle_cpu_fraction`` of one core for ``idle_s`` seconds
+  in a row while a period was due. A period always keeps at least one core busy; a deadlocked XLA runtime
+  (every thread parked on a futex, the state of the one CPU hang we observed) uses none, so this finds that
+  hang within minutes whatever the wall-time limit. "Compute threads" are all threads but the Python
+  threads other than the main one (the progress display's refresh thread alone uses about 1% of a core on
+  a terminal; TensorBoard's writer, this watchdog): on Linux the CPU times of the other threads
+  (``/proc/self/task/*/stat``, which do not change while a thread sleeps) are summed; elsewhere the whole
+  process counts.
 
 Time in which the process did not run at all (suspended with SIGSTOP/Ctrl-Z, a laptop asleep: the sampling
-thread sees a gap of more than ``3 x poll_s``) counts towards neither limit. As a backstop for a stall that
-keeps the GIL (the Python thread could then not run), ``faulthandler.dump_traceback_later`` is armed to
-print every thread's stack and exit the process ``backstop_s`` seconds after the wall-time limit.
+thread sees a gap of more than ``max(3 x poll_s, poll_s + 2 s)``) counts towards neither limit. As a
+backstop for a stall that keeps the GIL (the Python thread could then not run),
+``faulthandler.dump_traceback_later`` is armed to print every thread's stack and exit the process
+``backstop_s`` seconds after the wall-time limit.
 """
 
 from __future__ import annotations
 
 import faulthandler
 import math
+import os
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 #: Defaults of the automatic limits (seconds).
 FIRST_LIMIT_S = 3600.0
@@ -31,6 +38,30 @@ MIN_LIMIT_S = 600.0
 FIRST_PERIOD_FACTOR = 20.0
 IDLE_S = 300.0
 IDLE_CPU_FRACTION = 0.01
+
+
+def _thread_cpu_s(tid: int) -> float:
+    """CPU seconds (user + system) of thread ``tid`` of this process from /proc; 0 if unavailable."""
+    try:
+        fields = Path(f"/proc/self/task/{tid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
+    except (OSError, IndexError, ValueError):
+        return 0.0
+
+
+def compute_cpu_s() -> float:
+    """CPU seconds of this process's threads except its Python threads other than the main one (Linux;
+    elsewhere the CPU time of the whole process)."""
+    tasks = Path("/proc/self/task")
+    if not tasks.is_dir():
+        return time.process_time()
+    main = threading.main_thread()
+    helpers = {str(t.native_id) for t in threading.enumerate() if t is not main}
+    try:
+        tids = [p.name for p in tasks.iterdir()]
+    except OSError:
+        return time.process_time()
+    return sum(_thread_cpu_s(int(tid)) for tid in tids if tid not in helpers)
 
 
 class Watchdog:
@@ -130,13 +161,13 @@ class Watchdog:
             faulthandler.dump_traceback_later(limit + self.backstop_s, exit=True)
 
     def _run(self) -> None:
-        wall, cpu = time.monotonic(), time.process_time()
+        wall, cpu = time.monotonic(), compute_cpu_s()
         while not self._stop.wait(self.poll_s):
-            now_wall, now_cpu = time.monotonic(), time.process_time()
+            now_wall, now_cpu = time.monotonic(), compute_cpu_s()
             d_wall, d_cpu = now_wall - wall, now_cpu - cpu
             wall, cpu = now_wall, now_cpu
             with self._lock:
-                if d_wall > 3 * self.poll_s:  # the process did not run (suspended): count nothing
+                if d_wall > max(3 * self.poll_s, self.poll_s + 2.0):  # the process did not run: count nothing
                     self._idle_for_s = 0.0
                     continue
                 self._since_beat_s += d_wall
