@@ -11,10 +11,11 @@ Each run is a subprocess ``python -m harv_jax.cli train --preset smoke --steps S
 (``XLA_FLAGS=--xla_force_host_platform_device_count=<cores>``, the CLI's former setting for ``train``: one
 XLA host device per core while the trainer computes on one).
 
-A run that has not finished after ``--timeout-s`` counts as a hang: the native stacks of all its threads are
-written with ``gdb -p PID -batch -ex "thread apply all bt"`` (if gdb is installed) next to the JSON, then
-the run is given up to ``--watchdog-grace-s`` more for the training watchdog to end it (exit code 3) before
-it is killed. The JSON records every run (arm, exit code, seconds, hang, watchdog exit, last stderr line,
+A run that has not finished after ``--timeout-s`` (``timed_out``) has the native stacks of all its threads
+written with ``gdb -p PID -batch -ex "thread apply all bt"`` (if gdb is installed) next to the JSON, and is
+then given up to ``--watchdog-grace-s`` more: it counts as a hang (``hung``) if the training watchdog ends
+it (exit code 3) or it is still running then (it is killed); a run that was merely slow finishes in that
+time. The JSON records every run (arm, exit code, seconds, timed out, hang, watchdog exit, last stderr line,
 periods finished), the totals per arm, the CPU model (/proc/cpuinfo), core count, load average, the jax and
 jaxlib versions and the XLA_FLAGS of the parent.
 """
@@ -89,26 +90,28 @@ def one_run(i: int, arm: str, args: argparse.Namespace, tmp: Path, out_dir: Path
     with open(err_path, "w") as err:
         proc = subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.DEVNULL, stderr=err,
                                 start_new_session=True)  # fmt: skip
-        hung, stacks, watchdog_exit = False, None, False
+        timed_out, hung, stacks, watchdog_exit = False, False, None, False
         try:
             rc = proc.wait(timeout=args.timeout_s)
         except subprocess.TimeoutExpired:
-            hung = True
+            timed_out = True
             stack_file = out_dir / f"{Path(args.out).stem}_hang_{i:03d}_gdb.txt"
             stacks = str(stack_file.relative_to(REPO)) if native_stacks(proc.pid, stack_file) else None
             try:
                 rc = proc.wait(timeout=args.watchdog_grace_s)
-                watchdog_exit = rc == 3
+                watchdog_exit = hung = rc == 3
             except subprocess.TimeoutExpired:
+                hung = True
                 os.killpg(proc.pid, signal.SIGKILL)
                 rc = proc.wait()
     wall = time.monotonic() - t0
     lines = err_path.read_text(errors="replace").strip().splitlines()
     periods = sum(1 for line in lines if line.startswith("period "))
-    record = {"run": i, "arm": arm, "seed": i, "returncode": rc, "wall_s": round(wall, 2), "hung": hung,
+    record = {"run": i, "arm": arm, "seed": i, "returncode": rc, "wall_s": round(wall, 2),
+              "timed_out": timed_out, "hung": hung,
               "watchdog_exit": watchdog_exit, "periods_done": periods, "gdb_stacks": stacks,
               "last_stderr_line": lines[-1][:300] if lines else ""}  # fmt: skip
-    if rc == 0 and not hung:
+    if rc == 0 and not timed_out:
         shutil.rmtree(run, ignore_errors=True)
         err_path.unlink(missing_ok=True)
     return record
@@ -119,6 +122,7 @@ def summarize(records: list[dict[str, Any]]) -> dict[str, Any]:
     return {
         "runs": len(records),
         "ok": sum(r["returncode"] == 0 and not r["hung"] for r in records),
+        "timed_out": sum(r["timed_out"] for r in records),
         "hangs": sum(r["hung"] for r in records),
         "watchdog_exits": sum(r["watchdog_exit"] for r in records),
         "other_failures": sum(r["returncode"] != 0 and not r["hung"] for r in records),
@@ -159,7 +163,7 @@ def main() -> None:
             rec = one_run(i, arm, args, Path(tmp), out.parent)
             records.append(rec)
             print(json.dumps(rec), flush=True)
-            if rec["hung"] or rec["returncode"] != 0:  # keep what a failed run left
+            if rec["timed_out"] or rec["returncode"] != 0:  # keep what a failed or slow run left
                 keep = out.parent / f"{out.stem}_run_{i:03d}.stderr"
                 src = Path(tmp) / f"run_{i:03d}.stderr"
                 if src.is_file():

@@ -175,6 +175,17 @@ def test_watchdog_ignores_busy_helper_threads():
         helper.join()
 
 
+def test_watchdog_backstop_ends_the_process():
+    """If the watchdog thread cannot act (here: its handler does nothing), faulthandler ends the process."""
+    code = ("import time; from harv_jax.ppo.watchdog import Watchdog; "
+            "Watchdog(lambda r: None, limit_s=0.5, idle_s=0, poll_s=0.1, backstop_s=0.5).start(); "
+            "time.sleep(30)")  # fmt: skip
+    t0 = time.monotonic()
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, timeout=120)
+    assert r.returncode == 1 and "Timeout (0:00:01)!" in r.stderr, r.stderr
+    assert time.monotonic() - t0 < 25
+
+
 def test_watchdog_automatic_limit():
     dog, _, _ = _watch(first_limit_s=100.0, min_limit_s=7.0)
     dog._t_start = time.monotonic() - 2.0
