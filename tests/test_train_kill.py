@@ -385,5 +385,6 @@ def test_watchdog_stops_a_stalled_cli_run(tiny, tmp_path):
                        capture_output=True, text=True, cwd=REPO, timeout=900)  # fmt: skip
     assert r.returncode == 3, r.stderr[-3000:]
     last = r.stderr.strip().splitlines()[-1]
-    assert last.startswith("harv-jax: error: training stalled: no progress for") and "--resume" in last
+    assert last.startswith("harv-jax: error: training stalled: no progress for")
+    assert "no checkpoint written yet: continue with harv-jax train --resume" in last
     assert (run / "stall_traceback.txt").read_text().count("File ") > 0

@@ -277,8 +277,12 @@ def _stall_handler(out_dir: Path, console: Any) -> Any:
             console.file.flush()
         except Exception:  # noqa: BLE001 - the progress display must not stop the exit
             pass
-        line = (f"harv-jax: error: training stalled: {reason}; the checkpoints in {out_dir / 'checkpoints'} "
-                f"are intact: continue with harv-jax train --resume {out_dir}")  # fmt: skip
+        from harv_jax.ppo import checkpoint
+
+        files = checkpoint.checkpoint_paths(out_dir / "checkpoints")
+        kept = f"its newest checkpoint {files[-1].name} is intact" if files else "no checkpoint written yet"
+        line = (f"harv-jax: error: training stalled: {reason}; {kept}: continue with "
+                f"harv-jax train --resume {out_dir}")  # fmt: skip
         print(line, file=sys.stderr, flush=True)
         os._exit(STALL_EXIT_CODE)
 
