@@ -45,8 +45,9 @@ def use_all_cpu_cores() -> None:
 
 
 #: Commands that compute on one device on CPU (``harv_jax.ppo.train.default_devices``): they get one XLA host
-#: device, not one per core. Extra host devices were unused there and are the one difference between the
-#: CLI runs (1 hang in 15) and the script runs (0 in 10) of the same training (experiments/stress_train.py).
+#: device, not one per core. The extra host devices were unused there, and they were the one difference
+#: between the CLI runs (1 hang in 15) and the script runs (0 in 10) of the same training
+#: (experiments/ppo_sweep_results.md, "Known problem").
 ONE_HOST_DEVICE_COMMANDS = ("train",)
 
 
