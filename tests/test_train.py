@@ -213,6 +213,7 @@ def test_checkpoint_without_a_newer_setting_restores(trainer, full_run, tmp_path
     old_config = json.loads(payload["config"])
     del old_config["stagger_episodes"]
     payload["config"] = json.dumps(old_config)
+    del payload["sha256"]  # such old files also predate the checksum
     (tmp_path / "ckpt_000004.msgpack").write_bytes(serialization.msgpack_serialize(payload))
     template = jax.eval_shape(trainer.init, seed_keys(jax.random.key(0), 2), TOY_PARAMS)
     assert checkpoint.restore_latest(tmp_path, template, CFG).period == 4
@@ -308,11 +309,11 @@ def test_shipped_presets_equal_experiments_presets():
 def test_presets_load_from_package_data_without_checkout(monkeypatch, tmp_path):
     want = ppo_config.load_preset("smoke")
     monkeypatch.setattr(ppo_config, "PRESET_DIR", tmp_path / "no-checkout")  # as in a non-editable install
-    assert ppo_config.available_presets() == ["paper-full", "paper-partial", "smoke"]
+    assert ppo_config.available_presets() == ["paper-full", "paper-partial", "recovery", "smoke"]
     assert str(ppo_config.preset_path("smoke")) == str(ppo_config.PACKAGE_PRESET_DIR / "smoke.toml")
     assert ppo_config.load_preset("smoke") == want
     with pytest.raises(
-        UsageError, match="unknown preset 'nope'; available: paper-full, paper-partial, smoke"
+        UsageError, match="unknown preset .nope.; available: paper-full, paper-partial, recovery, smoke"
     ):
         ppo_config.load_preset("nope")
 

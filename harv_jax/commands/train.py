@@ -4,15 +4,22 @@ Outputs in ``--out DIR``: ``config.json``, ``metrics.csv`` (one row per period: 
 of every metric), TensorBoard event files in ``tb/`` (if tensorboardX is installed), ``checkpoints/``,
 ``training_curve.png`` (mean episode return +- std over seeds vs env steps) and ``policy/`` (``policy.npz``
 and ``policy.stablehlo`` of the best seed by final mean return, ``policy_seed<i>.npz`` for every seed).
+
+``--resume DIR`` continues from the newest intact checkpoint (a damaged newer one is skipped, renamed
+``*.corrupt`` and named in a message); a run folder killed before its first checkpoint is restarted from
+period 0 with the configuration in its ``config.json``. A watchdog (``--watchdog-s``,
+:mod:`harv_jax.ppo.watchdog`) ends a stalled run with a one-line error and exit code 3; its checkpoints stay
+intact, so ``--resume`` continues it.
 """
 
 from __future__ import annotations
 
 import csv
+import functools
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import typer
@@ -269,6 +276,158 @@ def save_spin_bank(out_dir: Path, env_table: dict[str, Any], env_params: Any) ->
     )
 
 
+# ---------------------------------------------------------------------------------------------- resume
+
+
+#: Exit code of a run that the watchdog stopped.
+STALL_EXIT_CODE = 3
+
+
+class ResumePlan(NamedTuple):
+    """How ``--resume DIR`` continues: from a checkpoint (``from_checkpoint``) or from period 0."""
+
+    cfg: Any
+    env_table: dict[str, Any]
+    from_checkpoint: bool
+    period: int
+    env_steps: int
+    init_policy: str | None
+    messages: tuple[str, ...]
+
+
+def resume_plan(run_dir: Path) -> ResumePlan:
+    """Decide how to continue the run in ``run_dir``: its newest intact checkpoint, or, if it was stopped
+    before writing one, a restart from period 0 with its ``config.json``. UsageError if neither exists."""
+    from harv_jax.ppo import checkpoint
+    from harv_jax.ppo import config as ppo_config
+
+    ckpt_dir = run_dir / "checkpoints"
+    choice = checkpoint.latest_intact(ckpt_dir)
+    if choice is not None:
+        messages = [
+            f"skipping checkpoint {p.name}: {reason.removeprefix(f'checkpoint {str(p)!r} ')}; "
+            f"it is kept as {p.name}.corrupt"
+            for p, reason in choice.skipped
+        ]
+        period, steps = int(choice.payload["period"]), int(choice.payload["env_steps"])
+        messages.append(f"resuming from period {period} (env steps {steps:,}) of {choice.path}")
+        cfg = ppo_config.from_dict(json.loads(choice.payload["config"]), source=choice.path.name)
+        env_table = json.loads(choice.payload["env_config"])
+        return ResumePlan(cfg, env_table, True, period, steps, None, tuple(messages))
+    record_path = run_dir / "config.json"
+    if not record_path.is_file():
+        raise UsageError(
+            f"no checkpoint found in {str(ckpt_dir)!r} and no config.json in {str(run_dir)!r}: "
+            "not a harv-jax train run folder; start a new run with --out"
+        )
+    try:
+        record = json.loads(record_path.read_text())
+        cfg = ppo_config.from_dict(record["ppo"], source=str(record_path))
+        env_table = dict(record.get("env", {}))
+        init_policy = record.get("init_policy")
+    except (ValueError, KeyError, TypeError, AttributeError) as e:
+        raise UsageError(
+            f"no checkpoint found in {str(ckpt_dir)!r} and {str(record_path)!r} is unreadable "
+            f"({type(e).__name__}); start the run again with --out {str(run_dir)!r} --force"
+        ) from None
+    msg = (f"no checkpoint in {ckpt_dir} (the run stopped before its first one): restarting it from "
+           "period 0 with the configuration in its config.json")  # fmt: skip
+    return ResumePlan(cfg, env_table, False, 0, 0, init_policy, (msg,))
+
+
+def _stall_handler(out_dir: Path, console: Any) -> Any:
+    """``on_stall`` for the CLI: all threads' Python stacks to ``stall_traceback.txt``, one line, exit 3.
+
+    The process ends with ``os._exit`` (a deadlocked XLA runtime cannot be unwound); a checkpoint is written
+    atomically, so the newest complete one stays loadable whenever this fires.
+    """
+    import faulthandler
+    import os
+    import sys
+
+    def on_stall(reason: str) -> None:
+        try:
+            with open(out_dir / "stall_traceback.txt", "w") as f:
+                faulthandler.dump_traceback(f, all_threads=True)
+        except OSError:
+            pass
+        try:
+            console.file.flush()
+        except Exception:  # noqa: BLE001 - the progress display must not stop the exit
+            pass
+        from harv_jax.ppo import checkpoint
+
+        files = checkpoint.checkpoint_paths(out_dir / "checkpoints")
+        kept = f"its newest checkpoint {files[-1].name} is intact" if files else "no checkpoint written yet"
+        line = (f"harv-jax: error: training stalled: {reason}; {kept}: continue with "
+                f"harv-jax train --resume {out_dir}")  # fmt: skip
+        print(line, file=sys.stderr, flush=True)
+        os._exit(STALL_EXIT_CODE)
+
+    return on_stall
+
+
+def make_watchdog(watchdog_s: float | None, out_dir: Path, console: Any) -> Any:
+    """The CLI's :class:`~harv_jax.ppo.watchdog.Watchdog` (not started); ``watchdog_s`` 0 turns it off."""
+    from harv_jax.ppo.watchdog import Watchdog
+
+    if watchdog_s == 0:
+        return None
+    # an explicit limit also shortens the no-CPU-use limit (so a short --watchdog-s acts quickly)
+    idle_s = None if watchdog_s is None else watchdog_s
+    kw = {} if idle_s is None else {"idle_s": min(idle_s, 300.0), "poll_s": min(5.0, max(0.2, idle_s / 5))}
+    return Watchdog(_stall_handler(out_dir, console), limit_s=watchdog_s, **kw)
+
+
+def check_run_flags(periods: int | None, checkpoint_every: int | None, watchdog_s: float | None) -> None:
+    """One-line UsageErrors for --periods, --checkpoint-every and --watchdog-s (before anything is built)."""
+    for flag, v in (("--periods", periods), ("--checkpoint-every", checkpoint_every)):
+        if v is not None and v <= 0:
+            raise UsageError(f"{flag} {v} must be a positive integer")
+    if watchdog_s is not None and (not math.isfinite(watchdog_s) or watchdog_s < 0):
+        raise UsageError(f"--watchdog-s {watchdog_s} must be a finite number of seconds >= 0 (0: off)")
+
+
+def check_periods(cfg: Any, periods: int | None) -> None:
+    """``--periods N`` cannot exceed the number of PPO updates (a period is at least one update)."""
+    from harv_jax.ppo import config as ppo_config
+
+    updates = math.ceil(cfg.total_steps / ppo_config.batch_size(cfg))
+    if periods is not None and periods > updates:
+        raise UsageError(
+            f"--periods {periods} exceeds the {updates} PPO updates of this run "
+            f"(--steps {cfg.total_steps} / (num_envs {cfg.num_envs} x unroll {cfg.unroll})); "
+            f"at most {updates}"
+        )
+
+
+#: Preset fields shown in the help of the flag that overrides them.
+_PRESETS_SHOWN = ("smoke", "paper-partial", "paper-full")
+
+
+@functools.cache
+def _shown_presets() -> tuple[tuple[str, Any], ...]:
+    """(name, PPOConfig) of the presets named in the help (those that load)."""
+    from harv_jax.ppo import config as ppo_config
+
+    out = []
+    for name in _PRESETS_SHOWN:
+        try:
+            out.append((name, ppo_config.load_preset(name)[0]))
+        except UsageError:
+            continue
+    return tuple(out)
+
+
+def preset_defaults(field: str) -> str:
+    """'Default from --preset: smoke 600,000, paper-partial ...' for a PPO field (help text)."""
+    parts = []
+    for name, cfg in _shown_presets():
+        v = getattr(cfg, field)
+        parts.append(f"{name} {v:,}" if isinstance(v, int) and not isinstance(v, bool) else f"{name} {v:g}")
+    return ("Default from --preset: " + ", ".join(parts) + ".") if parts else "Default from --preset."
+
+
 # ---------------------------------------------------------------------------------------------- command
 
 
@@ -280,6 +439,7 @@ def run_train(
     force: bool,
     init_policy: str | None = None,
     target_recovery: float | None = None,
+    watchdog_s: float | None = None,
 ) -> dict[str, Any]:
     """Validate, build, train, write outputs; returns a summary dict. Raises UsageError on bad input.
 
@@ -287,15 +447,19 @@ def run_train(
     starts from instead of a random initialization (fine-tuning; recorded in ``config.json``).
     ``target_recovery``: stop at the first evaluation (``[eval]``) where every seed's RL-only recovery
     fraction is at least this (evaluation then runs every period unless ``[eval] every`` says otherwise).
+    ``watchdog_s``: wall seconds without a finished period after which the run stops with exit code 3
+    (None: automatic, see :mod:`harv_jax.ppo.watchdog`; 0: no watchdog).
     """
     if target_recovery is not None and not (math.isfinite(target_recovery) and 0 < target_recovery <= 1):
         raise UsageError(f"--target-recovery {target_recovery} must be in (0, 1]")
     from harv_jax.ppo import checkpoint
     from harv_jax.ppo import config as ppo_config
 
+    check_run_flags(overrides.get("num_periods"), overrides.get("checkpoint_every"), watchdog_s)
+    plan = None
     if resume is not None:
         given = ["--preset"] if preset is not None else []
-        given += ["--" + k.replace("_", "-") for k, v in sorted(overrides.items()) if v is not None]
+        given += [ppo_config.flag_name(k) for k, v in sorted(overrides.items()) if v is not None]
         given += ["--init-policy"] if init_policy is not None else []
         if given:
             raise UsageError(f"--resume continues the stored configuration; drop {given[0]}")
@@ -303,12 +467,15 @@ def run_train(
             raise UsageError(f"--resume writes into its own folder; drop --out {str(out)!r}")
         if not Path(resume).is_dir():
             raise UsageError(f"--resume {str(resume)!r} is not a directory")
-        cfg, env_table = checkpoint.stored_configs(resume)
+        plan = resume_plan(Path(resume))
+        cfg, env_table, init_policy = plan.cfg, plan.env_table, plan.init_policy
         out_dir = Path(resume)
+        checkpoint.remove_stale_tmp(out_dir / "checkpoints")  # left by a save that was killed
     else:
         if out is None:
             raise UsageError("--out DIR is required (or --resume DIR)")
         cfg, env_table = build_config(preset or "smoke", overrides)
+        check_periods(cfg, overrides.get("num_periods"))
 
     import jax
 
@@ -319,7 +486,7 @@ def run_train(
     env, env_params = make_harv_env(env_table)
     trainer = make_train(env, cfg, env_params, episode_metrics_fn=harv_episode_metrics)
     init = None
-    if init_policy is not None:  # checked before --out is touched
+    if init_policy is not None and (plan is None or not plan.from_checkpoint):  # before --out is touched
         from harv_jax.policy import resolve_policy
         from harv_jax.ppo.train import check_init_policy
 
@@ -342,10 +509,7 @@ def run_train(
     hook, eval_desc = make_eval_hook(trainer, cfg, env_params, env_table, target_recovery, out_dir)
     n_periods = ppo_config.num_periods(cfg)
     total = n_periods * ppo_config.steps_per_period(cfg)
-    start_steps = 0
-    if resume is not None:
-        files = checkpoint.checkpoint_paths(out_dir / "checkpoints")
-        start_steps = int(checkpoint.read(files[-1])["env_steps"]) if files else 0
+    start_steps = plan.env_steps if plan is not None else 0
     tb = _TensorBoard(out_dir / "tb", purge_step=start_steps if resume is not None else None)
     history_box: list[list[dict[str, Any]]] = [[]]
 
@@ -353,6 +517,9 @@ def run_train(
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     console = Console(stderr=True)
+    for line in plan.messages if plan is not None else ():
+        console.print(f"harv-jax: {line}", soft_wrap=True, markup=False, highlight=False)
+    dog = make_watchdog(watchdog_s, out_dir, console)
     progress = Progress(
         TextColumn("[bold]train"),
         BarColumn(),
@@ -376,6 +543,8 @@ def run_train(
     last_eval = ["-"]
 
     def on_period(p: int, row: dict[str, Any]) -> None:
+        if dog is not None:
+            dog.beat()
         history_box[0].append(row)
         sps = cfg.num_seeds * ppo_config.steps_per_period(cfg) / max(row["period_s"], 1e-9)
         fields = {
@@ -400,11 +569,18 @@ def run_train(
         tb.write(row)
 
     key = jax.random.key(cfg.seed)
-    with progress:
-        result = run_training(
-            key, env, env_params, cfg, run_dir=out_dir, resume=resume is not None, env_config=env_table,
-            progress_fn=on_period, trainer=trainer, init_policy=init, period_hook=hook,
-        )  # fmt: skip
+    if dog is not None:
+        dog.start()
+    try:
+        with progress:
+            result = run_training(
+                key, env, env_params, cfg, run_dir=out_dir, resume=plan is not None and plan.from_checkpoint,
+                env_config=env_table, progress_fn=on_period, trainer=trainer, init_policy=init,
+                period_hook=hook,
+            )  # fmt: skip
+    finally:
+        if dog is not None:
+            dog.stop()
     tb.close()
     history = result.history
     write_metrics_csv(out_dir / "metrics.csv", history)
@@ -441,22 +617,51 @@ def register(app: typer.Typer) -> None:
             help="Preset (experiments/presets, shipped with the package): smoke, paper-partial, "
             "paper-full (or a path to a .toml). Default smoke.",
         ),  # fmt: skip
-        steps: int = typer.Option(None, help="Env steps per seed (> 0)."),
-        num_envs: int = typer.Option(None, help="Parallel envs per seed; divisible by the device count."),
-        unroll: int = typer.Option(None, help="Rollout length per update (> 0)."),
-        epochs: int = typer.Option(None, help="PPO epochs per update (> 0)."),
-        minibatches: int = typer.Option(None, help="Minibatches per epoch; divides num_envs * unroll."),
-        lr: float = typer.Option(None, help="Adam learning rate (> 0)."),
-        seeds: int = typer.Option(None, help="Independent policies trained together (vmap)."),
-        seed: int = typer.Option(None, help="Base seed (>= 0)."),
+        steps: int = typer.Option(None, help="Env steps per seed (> 0). " + preset_defaults("total_steps")),
+        num_envs: int = typer.Option(
+            None, help="Parallel envs per seed; divisible by the device count. " + preset_defaults("num_envs")
+        ),
+        unroll: int = typer.Option(
+            None, help="Rollout length per update (> 0). " + preset_defaults("unroll")
+        ),
+        epochs: int = typer.Option(None, help="PPO epochs per update (> 0). " + preset_defaults("epochs")),
+        minibatches: int = typer.Option(
+            None, help="Minibatches per epoch; divides num_envs * unroll. " + preset_defaults("minibatches")
+        ),
+        lr: float = typer.Option(None, help="Adam learning rate (> 0). " + preset_defaults("lr")),
+        seeds: int = typer.Option(
+            None, help="Independent policies trained together (vmap). " + preset_defaults("num_seeds")
+        ),
+        seed: int = typer.Option(None, help="Base seed (>= 0). " + preset_defaults("seed")),
+        periods: int = typer.Option(
+            None,
+            help="Host periods (progress line, metrics row, checkpoint chance) over the run; at most the "
+            "number of PPO updates. " + preset_defaults("num_periods"),
+        ),
+        checkpoint_every: int = typer.Option(
+            None,
+            help="Write a checkpoint every K periods (and after the last). "
+            + preset_defaults("checkpoint_every"),
+        ),
+        watchdog_s: float = typer.Option(
+            None,
+            help="Stop a stalled run (exit code 3, checkpoints intact) when no period finishes for this many "
+            "seconds, or when the process uses no CPU for min(this, 300) s. Default automatic: 3600 s for "
+            "the first period (it includes compilation), then max(600 s, 20 x the first period), and 300 s "
+            "without CPU use. 0: off.",
+        ),
         out: Path = typer.Option(None, help="Output directory (new, or empty, or with --force)."),
         resume: Path = typer.Option(
-            None, help="Continue the run in this directory from its last checkpoint."
+            None,
+            help="Continue the run in this directory from its newest intact checkpoint (a damaged newer one "
+            "is skipped and kept as *.corrupt); a run stopped before its first checkpoint restarts from "
+            "period 0 with its config.json.",
         ),
         force: bool = typer.Option(False, help="Replace an existing non-empty --out directory."),
         init_policy: str = typer.Option(
             None,
-            help="Start every seed from this policy (shipped:NAME, or a path\\[@seed]): fine-tuning.",
+            help="Start every seed from this policy (shipped:NAME, or a path, optionally with "
+            "@SEED): fine-tuning.",
         ),
         target_recovery: float = typer.Option(
             None,
@@ -465,8 +670,18 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Train PPO policies (several seeds at once) on the spin/upset recovery env."""
         overrides = {"total_steps": steps, "num_envs": num_envs, "unroll": unroll, "epochs": epochs,
-                     "minibatches": minibatches, "lr": lr, "num_seeds": seeds, "seed": seed}  # fmt: skip
-        summary = run_train(preset, overrides, out, resume, force, init_policy, target_recovery)
+                     "minibatches": minibatches, "lr": lr, "num_seeds": seeds, "seed": seed,
+                     "num_periods": periods, "checkpoint_every": checkpoint_every}  # fmt: skip
+        summary = run_train(
+            preset,
+            overrides,
+            out,
+            resume,
+            force,
+            init_policy,
+            target_recovery=target_recovery,
+            watchdog_s=watchdog_s,
+        )
         ret = summary.get("episode_return", {})
         rec = summary.get("episode/recovered", {})
         typer.echo(

@@ -5,13 +5,17 @@ A checkpoint is one file ``checkpoints/ckpt_<period>.msgpack`` holding every lea
 key data, counters) with its tree path, shape and dtype; the PPO config; the env config; the period index
 and the metrics history. It is written to a temporary file in the same folder, flushed, fsynced and renamed
 over the final name, so a SIGKILL leaves either the previous checkpoint or the new one, never a torn file.
-The newest ``KEEP`` checkpoints are kept. Loading checks the format name and version, the config, and every
-leaf's path, shape and dtype against the state the current code would build; any mismatch is a one-line
-UsageError.
+The newest ``KEEP`` checkpoints are kept. Each file carries a SHA-256 of its header and leaves, so a file
+torn or damaged afterwards (a full disk, a copy cut short, bit rot) is recognised: :func:`latest_intact`
+skips it and falls back to the newest intact one, and :func:`set_aside` renames it ``*.corrupt`` so that it
+is neither loaded nor counted by the pruning. Loading checks the format name and version, the checksum (files
+written before it existed have none), the config, and every leaf's path, shape and dtype against the state
+the current code would build; any mismatch is a one-line UsageError.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import re
@@ -31,16 +35,31 @@ FORMAT = "harv_jax.ppo.checkpoint"
 VERSION = 1
 KEEP = 2
 _NAME = re.compile(r"^ckpt_(\d{6,})\.msgpack$")
+_TMP = re.compile(r"^\.tmp-(\d+)-ckpt_\d{6,}\.msgpack$")
+#: Header fields covered by the checksum, in order (then every leaf's dtype, shape and bytes).
+_DIGEST_FIELDS = ("format", "version", "period", "env_steps", "config", "env_config", "history", "paths",
+                  "key_leaves")  # fmt: skip
 
 
 class Restored(NamedTuple):
-    """A loaded checkpoint: state (host numpy / key arrays), periods done, history, configs."""
+    """A loaded checkpoint: state (host numpy / key arrays), periods done, history, configs, the file used
+    and the newer files skipped as damaged ((path, reason) pairs, newest first)."""
 
     state: Any
     period: int
     history: list[dict[str, Any]]
     config: dict[str, Any]
     env_config: dict[str, Any]
+    path: Path | None = None
+    skipped: tuple[tuple[Path, str], ...] = ()
+
+
+class Choice(NamedTuple):
+    """The checkpoint :func:`latest_intact` picked: its path and payload, and the newer files it skipped."""
+
+    path: Path
+    payload: dict[str, Any]
+    skipped: tuple[tuple[Path, str], ...]
 
 
 def _is_key(x: Any) -> bool:
@@ -76,6 +95,19 @@ def _to_host(x: Any) -> Any:
 
         return multihost_utils.process_allgather(x, tiled=True)
     return x
+
+
+def _digest(payload: dict[str, Any]) -> str:
+    """SHA-256 (hex) of the header fields and of every leaf's dtype, shape and bytes."""
+    h = hashlib.sha256()
+    for k in _DIGEST_FIELDS:
+        h.update(f"{k}={payload[k]!r};".encode())
+    leaves = payload["leaves"]
+    for i in range(len(leaves)):
+        x = np.ascontiguousarray(leaves[str(i)])
+        h.update(f"{i}:{x.dtype.str}:{x.shape};".encode())
+        h.update(x.tobytes())
+    return h.hexdigest()
 
 
 def checkpoint_paths(ckpt_dir: str | Path) -> list[Path]:
@@ -119,6 +151,7 @@ def save(
         "key_leaves": json.dumps([i for i, x in enumerate(orig) if _is_key(x)]),
         "leaves": {str(i): np.asarray(x) for i, x in enumerate(leaves)},
     }
+    payload["sha256"] = _digest(payload)
     data = serialization.msgpack_serialize(payload)
     tmp = d / f".tmp-{os.getpid()}-{final.name}"
     with open(tmp, "wb") as f:
@@ -144,14 +177,65 @@ def read(path: str | Path) -> dict[str, Any]:
     try:
         payload = serialization.msgpack_restore(p.read_bytes())
     except Exception as e:  # msgpack raises several types on corrupt input
-        raise UsageError(f"checkpoint {str(p)!r} is unreadable ({type(e).__name__})") from None
+        raise UsageError(
+            f"checkpoint {str(p)!r} is unreadable (truncated or damaged: {type(e).__name__})"
+        ) from None
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
         raise UsageError(f"{str(p)!r} is not a harv_jax PPO checkpoint")
     if payload.get("version") != VERSION:
         raise UsageError(
             f"checkpoint {str(p)!r} has version {payload.get('version')}; this code reads {VERSION}"
         )
+    if "sha256" in payload:  # files written before the checksum existed have none
+        try:
+            ok = _digest(payload) == payload["sha256"]
+        except (KeyError, TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise UsageError(f"checkpoint {str(p)!r} is corrupt (its checksum does not match its content)")
     return payload
+
+
+def latest_intact(ckpt_dir: str | Path) -> Choice | None:
+    """The newest checkpoint in ``ckpt_dir`` that reads and verifies, with the newer ones skipped and why.
+
+    Returns None if the folder holds no checkpoint file at all.
+
+    Raises:
+        UsageError: there are checkpoint files but none of them is intact.
+    """
+    files = checkpoint_paths(ckpt_dir)
+    skipped: list[tuple[Path, str]] = []
+    for path in reversed(files):
+        try:
+            return Choice(path, read(path), tuple(skipped))
+        except UsageError as e:
+            skipped.append((path, str(e)))
+    if files:
+        raise UsageError(
+            f"none of the {len(files)} checkpoint(s) in {str(ckpt_dir)!r} is intact "
+            f"(newest: {skipped[0][1]}); start the run again with --force"
+        )
+    return None
+
+
+def set_aside(path: str | Path) -> Path:
+    """Rename a damaged checkpoint to ``<name>.corrupt`` (kept for inspection, no longer loaded or pruned)."""
+    p = Path(path)
+    target = p.with_name(p.name + ".corrupt")
+    os.replace(p, target)
+    return target
+
+
+def remove_stale_tmp(ckpt_dir: str | Path) -> list[Path]:
+    """Delete temporary files that a killed :func:`save` of another process left in ``ckpt_dir``."""
+    d = Path(ckpt_dir)
+    if not d.is_dir():
+        return []
+    stale = [p for p in d.iterdir() if (m := _TMP.match(p.name)) and int(m.group(1)) != os.getpid()]
+    for p in stale:
+        p.unlink(missing_ok=True)
+    return stale
 
 
 def unflatten_into(payload: dict[str, Any], template: Any, source: str = "checkpoint") -> Any:
@@ -190,13 +274,16 @@ def restore_latest(ckpt_dir: str | Path, template: Any, cfg: PPOConfig) -> Resto
         template: the state the current code builds (e.g. ``jax.eval_shape`` of ``Trainer.init``).
         cfg: the config the run continues with; it must equal the stored one.
 
+    Damaged newer files are skipped (see :func:`latest_intact`; ``Restored.skipped`` lists them); they are
+    not renamed here (:func:`set_aside` does that).
+
     Raises:
-        UsageError: no checkpoint, unreadable, wrong version, different config, or mismatched leaves.
+        UsageError: no checkpoint, none intact, wrong version, different config, or mismatched leaves.
     """
-    files = checkpoint_paths(ckpt_dir)
-    if not files:
+    choice = latest_intact(ckpt_dir)
+    if choice is None:
         raise UsageError(f"no checkpoint found in {str(ckpt_dir)!r}")
-    payload = read(files[-1])
+    payload = choice.payload
     stored = json.loads(payload["config"])
     # settings added after a checkpoint was written are absent there; their defaults keep the old behaviour
     stored = {**ppo_config.to_dict(ppo_config.PPOConfig()), **stored}
@@ -207,22 +294,24 @@ def restore_latest(ckpt_dir: str | Path, template: Any, cfg: PPOConfig) -> Resto
         raise UsageError(
             f"checkpoint config differs from this run's: {k}={stored.get(k)!r} vs {current.get(k)!r}"
         )
-    state = unflatten_into(payload, template, source=f"checkpoint {files[-1].name}")
+    state = unflatten_into(payload, template, source=f"checkpoint {choice.path.name}")
     return Restored(
         state=state,
         period=int(payload["period"]),
         history=_history_from_json(payload["history"]),
         config=stored,
         env_config=json.loads(payload["env_config"]),
+        path=choice.path,
+        skipped=choice.skipped,
     )
 
 
 def stored_configs(run_dir: str | Path) -> tuple[PPOConfig, dict[str, Any]]:
-    """(PPO config, env config) of the newest checkpoint under ``run_dir/checkpoints`` (for ``--resume``)."""
-    files = checkpoint_paths(Path(run_dir) / "checkpoints")
-    if not files:
+    """(PPO config, env config) of the newest intact checkpoint under ``run_dir/checkpoints``."""
+    choice = latest_intact(Path(run_dir) / "checkpoints")
+    if choice is None:
         raise UsageError(f"no checkpoint found in {str(Path(run_dir) / 'checkpoints')!r}")
-    payload = read(files[-1])
-    return ppo_config.from_dict(json.loads(payload["config"]), source=files[-1].name), json.loads(
+    payload = choice.payload
+    return ppo_config.from_dict(json.loads(payload["config"]), source=choice.path.name), json.loads(
         payload["env_config"]
     )

@@ -74,11 +74,15 @@ _NONNEG_FLOAT = ("clip_value_eps", "vf_coef", "ent_coef")
 
 
 #: Config fields whose command-line flag has a different name.
-_FLAG_NAMES = {"total_steps": "--steps", "num_seeds": "--seeds"}
+_FLAG_NAMES = {"total_steps": "--steps", "num_seeds": "--seeds", "num_periods": "--periods"}
 
 
-def _flag(name: str) -> str:
+def flag_name(name: str) -> str:
+    """The ``harv-jax train`` flag of config field ``name`` (``total_steps`` -> ``--steps``)."""
     return _FLAG_NAMES.get(name, "--" + name.replace("_", "-"))
+
+
+_flag = flag_name
 
 
 def validate(cfg: PPOConfig) -> PPOConfig:

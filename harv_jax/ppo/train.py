@@ -579,6 +579,18 @@ def _put_global(x: Any, sharding: jax.sharding.Sharding) -> jax.Array:
     return jax.make_array_from_callback(x.shape, sharding, lambda idx: x[idx])
 
 
+def _tidy_checkpoints(ckpt_dir: Path, restored: Any) -> None:
+    """After a resume: rename the damaged newer checkpoints that were skipped to ``*.corrupt`` (so that the
+    pruning of the continued run does not keep them instead of good ones) and drop stale temporary files."""
+    from harv_jax.ppo import checkpoint
+
+    if jax.process_index() != 0:
+        return
+    for path, _ in restored.skipped:
+        checkpoint.set_aside(path)
+    checkpoint.remove_stale_tmp(ckpt_dir)
+
+
 def run_training(
     key: jax.Array,
     env: Any,
@@ -604,7 +616,8 @@ def run_training(
         env_params: env parameter pytree (traced argument).
         cfg: PPO config.
         run_dir: directory for ``checkpoints/`` (None: no checkpoints).
-        resume: continue from the newest checkpoint in ``run_dir`` (its state, history and counters).
+        resume: continue from the newest intact checkpoint in ``run_dir`` (its state, history and
+            counters); damaged newer ones are skipped and renamed ``*.corrupt``.
         env_config: env settings stored in checkpoints (for the record and for ``policy.load``).
         devices: devices to shard envs over (default all).
         progress_fn: called after each period as ``progress_fn(period_index, history_row)``.
@@ -635,6 +648,7 @@ def run_training(
             raise ValueError("resume needs run_dir")
         template = jax.eval_shape(trainer.init, seed_keys(key, cfg.num_seeds), env_params)
         restored = checkpoint.restore_latest(ckpt_dir, template, cfg)
+        _tidy_checkpoints(ckpt_dir, restored)
         state = jax.tree.map(_put_global, restored.state, trainer.state_shardings)
         history, start = restored.history, restored.period
     else:
