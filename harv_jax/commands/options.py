@@ -7,7 +7,10 @@ import typer
 POLICY_HELP = (
     "rl/hybrid policy: run folder, .npz, checkpoint[@seed], shipped:full (default), shipped:partial."
 )
-ZETA_HELP = "Hybrid zeta schedule: continuous, hysteresis (the paper's), always, never."
+ZETA_HELP = (
+    "Hybrid zeta schedule: continuous, hysteresis (the paper's), gated (per channel, from the reaching "
+    "condition), always, never."
+)
 
 
 def policy_option():
