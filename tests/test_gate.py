@@ -154,3 +154,48 @@ def test_fixture_policies_load_and_behave_as_named(tmp_path):
     assert np.all(acts["zero"] == 0.0)
     assert np.all(np.abs(acts["bang-bang"]) == 1.0) and np.all(np.std(acts["bang-bang"], axis=0) > 0.5)
     assert np.all(np.std(acts["random"], axis=0) > 0.1) and np.mean(np.abs(acts["random"]) < 1.0) > 0.5
+
+
+def test_gate_summary_pools_steps_over_runs():
+    from harv_jax.evaluation.monte_carlo import gate_summary
+
+    rng = np.random.default_rng(0)
+    n = 5
+    defined = rng.uniform(0.2, 0.6, (n, 3))
+    info = {
+        "zeta_channels": rng.uniform(0, 1, (n, 3)),
+        "policy_unmodified": rng.uniform(0, 1, n),
+        "correction_rad": rng.uniform(0, 0.1, (n, 3)),
+        "cert_free_defined": defined,
+        "cert_free_holds": defined * 0.9,
+        "cert_sat_defined": 1.0 - defined,
+        "cert_sat_holds": (1.0 - defined) * rng.uniform(0, 1, (n, 3)),
+    }
+    s = gate_summary(info)
+    np.testing.assert_allclose(list(s["certificate"]["holds_unsaturated"].values()), 0.9)
+    sat = info["cert_sat_holds"].sum(0) / info["cert_sat_defined"].sum(0)
+    np.testing.assert_allclose(list(s["certificate"]["holds_saturated"].values()), sat)
+    np.testing.assert_allclose(s["certificate"]["saturated_step_fraction"], np.mean(1.0 - defined))
+    np.testing.assert_allclose(list(s["zeta_mean_by_channel"].values()), info["zeta_channels"].mean(0))
+    assert gate_summary({"zeta": np.zeros(n)}) == {}
+
+
+def test_mc_cli_flies_the_gated_hybrid_and_summarizes_it(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from harv_jax.cli import app
+
+    pol = write_fixture_policies(tmp_path)["bang-bang"]
+    out = tmp_path / "mc"
+    args = ["mc", "--controller", "hybrid", "--zeta", "gated", "--policy", str(pol), "--runs", "2",
+            "--duration", "1", "--chunk", "2", "--out", str(out)]  # fmt: skip
+    r = CliRunner().invoke(app, args, standalone_mode=False)
+    assert r.exception is None, r.output
+    s = json.loads((out / "summary.json").read_text())
+    assert s["zeta_schedule"] == "gated"
+    h = s["controllers"]["hybrid"]["hybrid"]
+    assert all(0.0 <= v <= 1.0 for v in h["zeta_mean_by_channel"].values())
+    assert 0.0 <= h["policy_unmodified_fraction"] <= 1.0
+    assert all(v is None or 0.0 <= v <= 1.0 for v in h["certificate"]["holds_saturated"].values())
