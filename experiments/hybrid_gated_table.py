@@ -21,8 +21,8 @@ def _f(v, fmt: str) -> str:
 
 def mc_rows(folder: Path) -> list[str]:
     out = [
-        "| condition | N | policy | controller | recovered | not recovered | t_rec p50 s | t_rec p95 s | TV rad "
-        "| chatter 1e-6 rad² | ζ α/β/μ | policy unmodified | fallback | certificate unsat. α/β/μ "
+        "| condition | N | policy | controller | recovered | not recovered | t_rec p50 s | t_rec p95 s "
+        "| TV rad | chatter 1e-6 rad² | ζ α/β/μ | policy unmodified | fallback | certificate unsat. α/β/μ "
         "| certificate sat. α/β/μ | sat. steps |",
         "|---|---:|---|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---|---|---:|",
     ]
