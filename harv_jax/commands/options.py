@@ -8,7 +8,10 @@ POLICY_HELP = (
     "rl/hybrid policy: run folder, .npz, checkpoint\\[@seed], shipped:recovery (default), "
     "shipped:paper-full, shipped:paper-partial."
 )
-ZETA_HELP = "Hybrid zeta schedule: continuous, hysteresis (the paper's), always, never."
+ZETA_HELP = (
+    "Hybrid zeta schedule: continuous, hysteresis (the paper's), gated (per channel, from the reaching "
+    "condition), always, never."
+)
 
 
 def policy_option():

@@ -11,6 +11,11 @@ One step, for the wind state x and the reference y_ref:
 4. zeta from the schedule (``harv_jax.control.scheduling``; 1 in fallback);
 5. u = u_RL + zeta u_fb, then the position/rate box of the safety filter (``safety.filter_command``).
 
+The ``gated`` schedule replaces 4-5 by ``harv_jax.control.gate``: a zeta per channel, the least that keeps
+the reaching condition for the command that acts (clipped to this step's box), u = u_RL + A^-1 (zeta (.)
+A u_fb) (= u_RL + zeta u_fb for equal zetas); the SMC's integral then runs at every step (s contains it,
+and the gate drives s to 0, so the integral removes the learned law's bias instead of winding up).
+
 Identity (exact where the solve is unguarded): u_RL + zeta u_fb = (1 - zeta) u_RL + zeta u_SMC, so
 zeta = 1 is the SMC-only law for any policy and zeta = 0 the (filtered) RL-only law.
 
@@ -31,7 +36,8 @@ from flax import struct
 
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
-from harv_jax.control.safety import cap_authority, filter_command
+from harv_jax.control.gate import GateGains, certificate_holds, default_gate_gains, gate
+from harv_jax.control.safety import cap_authority, filter_command, limit_box
 from harv_jax.control.scheduling import ZetaState, continuous_zeta, hysteresis_step, zeta_init
 from harv_jax.control.smc import SMCConfig, SMCGains, default_gains, smc_command, update_integral
 from harv_jax.control.supervisor import (
@@ -44,8 +50,8 @@ from harv_jax.control.supervisor import (
 )
 from harv_jax.env.recovery import action_to_command, observation
 
-ZetaSchedule = Literal["hysteresis", "continuous", "always", "never"]
-ZETA_SCHEDULES: tuple[str, ...] = ("hysteresis", "continuous", "always", "never")
+ZetaSchedule = Literal["hysteresis", "continuous", "gated", "always", "never"]
+ZETA_SCHEDULES: tuple[str, ...] = ("hysteresis", "continuous", "gated", "always", "never")
 
 
 @struct.dataclass
@@ -61,6 +67,8 @@ class HybridGains:
             zeta = floor + (1 - floor) zeta_schedule. The paper's stability analysis assumes zeta in
             (0, 1]; its tube sets zeta = 0 inside (floor 0). Default ``DEFAULT_ZETA_FLOOR``.
         authority_frac: [3] cap of |u_RL| as a fraction of each channel's limits, in (0, 1].
+        gate: GateGains of the ``gated`` schedule (``harv_jax.control.gate``; every schedule logs its
+            certificate).
         supervisor: SupervisorGains.
     """
 
@@ -70,6 +78,7 @@ class HybridGains:
     zeta_min_dwell_s: jnp.ndarray
     zeta_floor: jnp.ndarray
     authority_frac: jnp.ndarray
+    gate: GateGains
     supervisor: SupervisorGains
 
 
@@ -89,15 +98,18 @@ DEFAULT_ZETA_FLOOR = 0.2
 
 
 def default_hybrid_gains(dtype=None) -> HybridGains:
-    """Default tube (DEFAULT_E_ON_RAD), zeta floor 0.2; 0.5 s dwell; no authority cap; default supervisor."""
+    """Default tube (DEFAULT_E_ON_RAD), zeta floor 0.2; 0.5 s dwell; no authority cap; default gate and
+    supervisor."""
     dtype = jnp.result_type(float) if dtype is None else dtype
+    smc = default_gains(dtype)
     return HybridGains(
-        smc=default_gains(dtype),
+        smc=smc,
         e_on_rad=jnp.asarray(DEFAULT_E_ON_RAD, dtype),
         e_off_rad=jnp.asarray(DEFAULT_E_OFF_RAD, dtype),
         zeta_min_dwell_s=jnp.asarray(0.5, dtype),
         zeta_floor=jnp.asarray(DEFAULT_ZETA_FLOOR, dtype),
         authority_frac=jnp.ones((3,), dtype),
+        gate=default_gate_gains(smc),
         supervisor=default_supervisor_gains(dtype),
     )
 
@@ -108,7 +120,8 @@ class HybridConfig:
 
     Attributes:
         schedule: zeta schedule: ``continuous`` (default, as the CLI), ``hysteresis`` (the paper's tube),
-            ``always`` (zeta = 1), ``never`` (zeta = 0, the filtered RL-only law).
+            ``gated`` (per channel, from the reaching condition: ``harv_jax.control.gate``), ``always``
+            (zeta = 1), ``never`` (zeta = 0, the filtered RL-only law).
         smc: SMCConfig of the feedback term.
         supervisor: enable the fallback supervisor.
         window_steps: length of the supervisor's intervention window, steps.
@@ -135,6 +148,7 @@ class HybridState:
         integral_rad_s: [3] SMC integral of e.
         u_prev_rad: [3] previous filtered command (the rate box is relative to it).
         zeta: ZetaState of the hysteresis schedule.
+        zeta_gate: [3] zeta of the previous step (the ``gated`` schedule's release floor).
         supervisor: SupervisorState.
         interventions: int32 [3] per-channel count of steps the filter changed the command.
     """
@@ -143,6 +157,7 @@ class HybridState:
     integral_rad_s: jnp.ndarray
     u_prev_rad: jnp.ndarray
     zeta: ZetaState
+    zeta_gate: jnp.ndarray
     supervisor: SupervisorState
     interventions: jnp.ndarray
 
@@ -160,9 +175,13 @@ def make_hybrid(
         gains: traced settings (default ``default_hybrid_gains()``).
 
     Returns:
-        Controller whose ``info`` holds: zeta, zeta_switched, fallback, fallback_entered, fallback_reason,
-        u_rl_rad [3], u_fb_rad [3], u_unfiltered_rad [3], cap_active [3], limit_active [3], intervened, e,
-        e_dot, s [3], w_mu, saturated, integral_rad_s [3].
+        Controller whose ``info`` holds: zeta (mean over channels), zeta_channels [3], zeta_switched,
+        policy_unmodified (the command that acts is the policy's, bit for bit), correction_rad [3]
+        (|u - u_RL|), fallback, fallback_entered, fallback_reason, u_rl_rad [3], u_fb_rad [3],
+        u_unfiltered_rad [3], cap_active [3], limit_active [3], intervened, e, e_dot, s [3], w_mu, saturated,
+        integral_rad_s [3], and the certificate (``control.gate.certificate_holds``) of the command that
+        acts, split by whether the box clipped it: cert_free_defined, cert_free_holds, cert_sat_defined,
+        cert_sat_holds (bool [3]; defined: solve exact, channel in its sliding mode).
     """
     cfg = HybridConfig() if cfg is None else cfg
     g = default_hybrid_gains() if gains is None else gains
@@ -176,6 +195,7 @@ def make_hybrid(
             integral_rad_s=z3,
             u_prev_rad=z3,
             zeta=zeta_init(dtype),
+            zeta_gate=z3,
             supervisor=supervisor_init(cfg.window_steps, dtype),
             interventions=jnp.zeros((3,), jnp.int32),
         )
@@ -195,7 +215,16 @@ def make_hybrid(
             x_wind, reference_rad, state.integral_rad_s, params, g.smc, cfg.smc, u_offset_rad=u_rl
         )
         zstate, switched = state.zeta, jnp.asarray(False)  # the tube's state moves only under hysteresis
-        if cfg.schedule == "hysteresis":
+        box_lo, box_hi = limit_box(state.u_prev_rad, params, dt_s)
+        mu_blended = jnp.stack([jnp.asarray(False), jnp.asarray(False), terms.w_mu < 1.0])
+        if cfg.schedule == "gated":
+            gated = gate(
+                u_rl, u_fb, terms.decoupling, terms.s, box_lo, box_hi, g.smc, g.gate,
+                cfg.smc.switching, dt_s, mu_blended, fallback | terms.solve.guard_active,
+                state.zeta_gate - g.gate.release_per_s * dt_s,
+            )  # fmt: skip
+            zeta = gated.zeta
+        elif cfg.schedule == "hysteresis":
             zstate, switched = hysteresis_step(
                 state.zeta, terms.e, g.e_on_rad, g.e_off_rad, g.zeta_min_dwell_s, dt_s
             )
@@ -207,15 +236,25 @@ def make_hybrid(
         else:
             zeta = jnp.zeros((), u_fb.dtype)
         zeta = jnp.where(fallback, 1.0, zeta)
+        zeta_ch = jnp.broadcast_to(zeta, (3,)).astype(u_fb.dtype)
 
-        u_raw = u_rl + zeta * u_fb
+        u_raw = gated.u_raw_rad if cfg.schedule == "gated" else u_rl + zeta * u_fb
         u_raw = jnp.where(jnp.all(jnp.isfinite(u_raw)), u_raw, state.u_prev_rad)
         u, limit_active = filter_command(u_raw, state.u_prev_rad, params, dt_s)
         saturated = jnp.any(jnp.clip(u_raw, params.u_min_rad, params.u_max_rad) != u_raw)
-        integral = update_integral(state.integral_rad_s, terms, saturated, g.smc, cfg.smc, zeta > 0)
+        integral_on = jnp.asarray(True) if cfg.schedule == "gated" else zeta > 0
+        integral = update_integral(state.integral_rad_s, terms, saturated, g.smc, cfg.smc, integral_on)
 
-        # interventions attributable to the learned command: its cap, or the box while it contributes
-        rl_active = ~fallback & (zeta < 1.0)
+        # the certificate of the command that acts, on the controller model (any schedule)
+        holds = certificate_holds(
+            terms.decoupling, u, u_rl + u_fb, terms.s, g.smc, g.gate, cfg.smc.switching, dt_s
+        )
+        defined = ~terms.solve.guard_active & ~mu_blended & jnp.all(jnp.isfinite(terms.s))
+        boxed = jnp.any(limit_active)
+
+        # interventions attributable to the learned command: its cap, or the box while it contributes (gated:
+        # only where it acts alone, zeta_i = 0; elsewhere the gate already chose zeta against the box)
+        rl_active = ~fallback & ((zeta_ch == 0.0) if cfg.schedule == "gated" else (zeta_ch < 1.0))
         cap_counted = cap_active & ~fallback
         limit_counted = limit_active & rl_active
         chan = cap_counted | limit_counted
@@ -226,12 +265,16 @@ def make_hybrid(
             integral_rad_s=integral,
             u_prev_rad=u,
             zeta=zstate,
+            zeta_gate=zeta_ch,
             supervisor=sup,
             interventions=state.interventions + chan.astype(jnp.int32),
         )
         info = {
-            "zeta": zeta,
+            "zeta": jnp.mean(zeta_ch),
+            "zeta_channels": zeta_ch,
             "zeta_switched": switched,
+            "policy_unmodified": ~fallback & jnp.all(u == u_rl_raw),
+            "correction_rad": jnp.abs(u - u_rl),
             "fallback": fallback,
             "fallback_entered": fallback & ~state.supervisor.fallback,
             "fallback_reason": sup.reason,
@@ -247,6 +290,10 @@ def make_hybrid(
             "w_mu": terms.w_mu,
             "saturated": saturated,
             "integral_rad_s": integral,
+            "cert_free_defined": defined & ~boxed,
+            "cert_free_holds": defined & ~boxed & holds,
+            "cert_sat_defined": defined & boxed,
+            "cert_sat_holds": defined & boxed & holds,
         }
         return u, new_state, info
 

@@ -204,13 +204,15 @@ def mu_channel_weight(gamma_rad: jnp.ndarray, gains: SMCGains) -> jnp.ndarray:
 
 
 class SMCTerms(struct.PyTreeNode):
-    """Per-step terms of the law (all rad-based): e, e_dot, s [3]; w_mu; the solve diagnostics."""
+    """Per-step terms of the law (all rad-based): e, e_dot, s [3]; w_mu; the solve diagnostics; the
+    decoupling matrix [3, 3] solved with (L_g L_f y, mu row blended), so s_dot is affine in u through it."""
 
     e: jnp.ndarray
     e_dot: jnp.ndarray
     s: jnp.ndarray
     w_mu: jnp.ndarray
     solve: SolveInfo
+    decoupling: jnp.ndarray
 
 
 def smc_command(
@@ -277,7 +279,7 @@ def smc_command(
     if u_offset_rad is not None:
         b = b - jnp.where(jnp.isfinite(a), a, 0.0) @ u_offset_rad
     u, solve = guarded_solve(a, b, gains.cond_max, gains.sigma_floor)
-    return u, SMCTerms(e=e, e_dot=e_dot, s=s, w_mu=w, solve=solve)
+    return u, SMCTerms(e=e, e_dot=e_dot, s=s, w_mu=w, solve=solve, decoupling=a)
 
 
 def update_integral(

@@ -27,6 +27,12 @@ from harv_jax.scenarios import sample_table_states
 
 #: State components the paper's Monte Carlo samples (the others start at 0 / h0).
 MC_SAMPLED_STATES = ("V", "alpha", "beta", "p", "q", "r")
+#: Per-channel [3] controller diagnostics averaged over time per run (the hybrid's zeta and certificate).
+PER_CHANNEL_INFO = (
+    "zeta_channels", "correction_rad", "cert_free_defined", "cert_free_holds", "cert_sat_defined",
+    "cert_sat_holds",
+)  # fmt: skip
+CHANNELS = ("alpha", "beta", "mu")
 TERMINAL_WINDOW_S = 1.0
 
 
@@ -89,7 +95,8 @@ class MCRunOutput(struct.PyTreeNode):
         metrics: RunMetrics.
         terminal_error_rad: [3] mean tracking error over the last ``TERMINAL_WINDOW_S`` of the run.
         history: [T_rec, 3] decimated alpha, beta, mu (rad) for the percentile bands.
-        info_means: controller diagnostics averaged over time (scalars per run).
+        info_means: controller diagnostics averaged over time (scalars per run; [3] for
+            ``PER_CHANNEL_INFO``).
     """
 
     metrics: RunMetrics
@@ -114,9 +121,9 @@ def _one_run(
     term = jnp.mean(tracking_errors(x_all[-n_term:], reference_rad), axis=0)
     hist = x_all[:-1:record_every][:, jnp.array([1, 2, 6])]
     info_means = {
-        k: jnp.mean(v.astype(x_all.dtype))
+        k: jnp.mean(v.astype(x_all.dtype), axis=0)
         for k, v in res.traj.info.items()
-        if v.ndim == 1  # per-step scalars (flags, weights)
+        if v.ndim == 1 or k in PER_CHANNEL_INFO  # per-step scalars (flags, weights), per-channel [3] flags
     }
     return MCRunOutput(metrics=m, terminal_error_rad=term, history=hist, info_means=info_means)
 
@@ -203,6 +210,45 @@ def _by_channel(per_run: Any) -> dict[str, float]:
     return {name: float(v) for name, v in zip(("elevator", "aileron", "rudder"), means, strict=True)}
 
 
+def gate_summary(info: dict[str, Any]) -> dict[str, Any]:
+    """The hybrid's per-channel zeta, how often the policy acted unmodified, the corrections and the
+    certificate of the command that acts (steps pooled over runs; saturated = the box clipped the command).
+    Empty for controllers without these diagnostics."""
+    if "zeta_channels" not in info:
+        return {}
+
+    def by_channel(a: np.ndarray) -> dict[str, float]:
+        return {c: float(v) for c, v in zip(CHANNELS, np.asarray(a, np.float64), strict=True)}
+
+    def pooled(holds: str, defined: str) -> dict[str, float | None]:
+        h = np.sum(np.asarray(info[holds], np.float64), axis=0)
+        d = np.sum(np.asarray(info[defined], np.float64), axis=0)
+        return {c: (float(hc / dc) if dc > 0 else None) for c, hc, dc in zip(CHANNELS, h, d, strict=True)}
+
+    n_def = np.asarray(info["cert_free_defined"], np.float64) + np.asarray(info["cert_sat_defined"])
+    sat_share = np.sum(np.asarray(info["cert_sat_defined"], np.float64)) / max(float(np.sum(n_def)), 1e-300)
+    return {
+        "zeta_mean_by_channel": by_channel(np.mean(info["zeta_channels"], axis=0)),
+        "policy_unmodified_fraction": float(np.mean(info["policy_unmodified"])),
+        "correction_mean_rad": {
+            s: v
+            for s, v in zip(
+                ("elevator", "aileron", "rudder"),
+                by_channel(np.mean(info["correction_rad"], axis=0)).values(),
+                strict=True,
+            )
+        },  # fmt: skip
+        "certificate": {
+            "holds_unsaturated": pooled("cert_free_holds", "cert_free_defined"),
+            "holds_saturated": pooled("cert_sat_holds", "cert_sat_defined"),
+            "saturated_step_fraction": float(sat_share),
+            "note": "harv_jax.control.gate's condition (outside the band: s*s_dot <= -eta |s| |sw(s)|) on "
+            "the controller model for the command that acts; steps with an exact solve and the channel in "
+            "its sliding mode",
+        },
+    }
+
+
 def summarize_controller(
     out: MCRunOutput, wall: dict[str, float], n_steps: int | None = None
 ) -> dict[str, Any]:
@@ -244,6 +290,7 @@ def summarize_controller(
         "zeta_switches_per_run": per_run("zeta_switched"),
         "fallback_fraction": float(np.mean(info["fallback"])) if "fallback" in info else None,
         "fallbacks_per_run": per_run("fallback_entered"),
+        **gate_summary(info),
     }
     return {
         "recovery_rate": float(rec.mean()) if n else None,
