@@ -68,12 +68,12 @@ def spin(ctrl) -> dict:
             "altitude_loss_ft": float(m.altitude_loss_ft)}  # fmt: skip
 
 
-def env_episodes(policy, n: int, seed: int) -> dict:
-    """Deterministic policy over n 60 s episodes of the env with the full randomization on."""
+def env_episodes(policy, n: int, seed: int, randomize: bool = True) -> dict:
+    """Deterministic policy over n 60 s episodes of the env with the full randomization on (or off)."""
     from harv_jax.env import EnvConfig, default_params, make_env
     from harv_jax.ppo.train import harv_episode_metrics
 
-    env = make_env(EnvConfig(episode_steps=N_STEPS, domain_randomization=True))
+    env = make_env(EnvConfig(episode_steps=N_STEPS, domain_randomization=randomize))
     params = default_params(env.config)
     a = jnp.asarray(DEFAULT_ALPHA_TARGET_RAD, params.reset.alpha_d_low_rad.dtype)
     params = params.replace(reset=params.reset.replace(alpha_d_low_rad=a, alpha_d_high_rad=a))
@@ -95,14 +95,23 @@ def env_episodes(policy, n: int, seed: int) -> dict:
             alive = alive & ~terminated & ~truncated
             return (obs2, state2, alive, last), None
 
-        last0 = {k: jnp.zeros((n,), jnp.float32) for k in ("recovered", "terminated", "alpha_ok")}
+        names = (
+            "recovered",
+            "alpha_ok",
+            "final_omega_radps",
+            "terminated",
+            "final_omega_alive_radps",
+            "final_abs_e_alpha_rad",
+        )  # harv_episode_metrics' keys
+        last0 = {k: jnp.zeros((n,), jnp.float32) for k in names}
         (_, _, _, last), _ = jax.lax.scan(
             step, (obs, state, jnp.ones((n,), bool), last0), jax.random.split(k1, N_STEPS)
         )
         return last
 
     last = jax.device_get(run(jax.random.key(seed)))
-    return {k: float(np.mean(v)) for k, v in last.items()} | {"episodes": n}
+    keep = ("recovered", "alpha_ok", "terminated")
+    return {k: float(np.mean(last[k])) for k in keep} | {"episodes": n}
 
 
 def paired(t_a: np.ndarray, t_b: np.ndarray) -> dict:
