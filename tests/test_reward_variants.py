@@ -173,3 +173,18 @@ def test_mu_weight_by_hand():
     got = [float(reward.mu_weight(jnp.asarray(math.radians(g)), w)) for g in (30.0, -75.0, 52.5, -48.75)]
     np.testing.assert_allclose(got, [1.0, 0.0, 0.5, 0.84375], rtol=1e-5, atol=1e-6)
     assert float(reward.mu_weight(jnp.asarray(1.5), W)) == 1.0  # the paper's settings: no weighting
+
+
+def test_cli_bad_reward_table_exit_2(monkeypatch, capsys, tmp_path):
+    """A [spin] mix out of range in a preset: one line naming the key and the range, exit 2, no run folder."""
+    from cli_util import cli_run
+
+    from harv_jax.ppo import config as ppo_config
+
+    text = ppo_config.preset_path("smoke").read_text() + "\n[spin]\nreset_prob = 1.5\n"
+    preset = tmp_path / "bad.toml"
+    preset.write_text(text)
+    code, _, err = cli_run(monkeypatch, capsys, "train", "--preset", preset, "--out", tmp_path / "run")
+    assert code == 2
+    assert err.strip() == "harv-jax: error: spin.reset_prob = 1.5 is outside the allowed range [0, 1]"
+    assert not (tmp_path / "run").exists()
