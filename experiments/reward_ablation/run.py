@@ -147,7 +147,12 @@ def main() -> None:
                    str(args.seeds), "--seed", str(args.seed), "--out", str(run_dir), "--force"]  # fmt: skip
             t0 = time.time()
             with open(args.out / f"{name}.log", "w") as log:
-                subprocess.run(cmd, check=True, stdout=log, stderr=subprocess.STDOUT, cwd=ROOT)
+                r = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, cwd=ROOT)
+                if r.returncode == 3:  # the watchdog stopped a stalled run: continue it once
+                    again = [sys.executable, "-m", "harv_jax.cli", "train", "--resume", str(run_dir)]
+                    r = subprocess.run(again, stdout=log, stderr=subprocess.STDOUT, cwd=ROOT)
+                if r.returncode:
+                    raise SystemExit(f"{name}: harv-jax train failed ({r.returncode}); see {name}.log")
             wall = time.time() - t0
             shutil.rmtree(run_dir / "checkpoints", ignore_errors=True)  # resumable only by re-running
         else:
