@@ -103,11 +103,28 @@ def derivatives(
     Returns:
         [10] time derivative. Singular at V = 0, cos(beta) = 0, cos(gamma) = 0.
     """
-    vt, alpha, beta = x[0], x[1], x[2]
-    pqr = x[3:6]
-    p, r = pqr[0], pqr[2]
-    q = pqr[1]
-    mu, gamma, h = x[6], x[7], x[9]
+    return wind_derivatives(x[0], x[1], x[2], x[3:6], x[6], x[7], x[9], u, params, control_forces)
+
+
+def wind_derivatives(
+    vt: jnp.ndarray,
+    alpha: jnp.ndarray,
+    beta: jnp.ndarray,
+    pqr: jnp.ndarray,
+    mu: jnp.ndarray,
+    gamma: jnp.ndarray,
+    h: jnp.ndarray,
+    u: jnp.ndarray,
+    params: AircraftParams,
+    control_forces: bool = True,
+) -> jnp.ndarray:
+    """``derivatives`` with the state passed by component (chi does not enter).
+
+    V ft/s, alpha/beta/mu/gamma rad, pqr [3] rad/s, h ft. Separate arguments let forward-mode
+    autodiff push a tangent through some components only (e.g. the body rates) without
+    differentiating the rest of the model (``harv_jax.control.lie``).
+    """
+    p, q, r = pqr[0], pqr[1], pqr[2]
     fm = forces_moments(vt, alpha, beta, pqr, h, u, params, control_forces)
     m, g = params.mass_slug, params.g
     sa, ca = jnp.sin(alpha), jnp.cos(alpha)
