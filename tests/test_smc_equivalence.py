@@ -1,6 +1,6 @@
 """The cheaper SMC step (issue 18) equals the implementation before it: Lie terms, solve, command, MC.
 
-The references are the previous implementations, kept verbatim in ``tests/smc_reference.py``.
+The references are the previous implementations, kept verbatim in ``tests/speed_reference.py``.
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from smc_reference import (
+from speed_reference import (
     guarded_solve_reference,
     smc_lie_terms_reference,
     use_reference,

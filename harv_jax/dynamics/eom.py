@@ -22,7 +22,7 @@ import jax.numpy as jnp
 
 from harv_jax.aircraft.aero import coefficients
 from harv_jax.aircraft.params import AircraftParams
-from harv_jax.dynamics.atmosphere import RHO_SL_SLUGFT3, density_slugft3
+from harv_jax.dynamics.atmosphere import density_and_thrust_lapse
 from harv_jax.dynamics.state import BodyState
 
 #: Airspeed floor for the non-dimensional rates p b / (2V) etc., ft/s (guards V -> 0 only).
@@ -52,9 +52,9 @@ def forces_moments(
     control_forces: bool = True,
 ) -> ForcesMoments:
     """Aerodynamic forces and moments plus thrust at one flight condition."""
-    rho = density_slugft3(h_ft)
+    rho, lapse = density_and_thrust_lapse(h_ft)
     qbar = 0.5 * rho * vt_fps * vt_fps
-    thrust = params.throttle * params.T_max * (rho / RHO_SL_SLUGFT3) ** 0.7
+    thrust = params.throttle * params.T_max * lapse
     c = coefficients(
         alpha_rad, beta_rad, pqr_radps, jnp.maximum(vt_fps, V_FLOOR_FPS), u_rad, params,
         control_forces,
@@ -128,9 +128,10 @@ def wind_derivatives(
     fm = forces_moments(vt, alpha, beta, pqr, h, u, params, control_forces)
     m, g = params.mass_slug, params.g
     sa, ca = jnp.sin(alpha), jnp.cos(alpha)
-    sb, cb, tb = jnp.sin(beta), jnp.cos(beta), jnp.tan(beta)
+    sb, cb = jnp.sin(beta), jnp.cos(beta)
     smu, cmu = jnp.sin(mu), jnp.cos(mu)
-    sg, cg, tg = jnp.sin(gamma), jnp.cos(gamma), jnp.tan(gamma)
+    sg, cg = jnp.sin(gamma), jnp.cos(gamma)
+    tb, tg = sb / cb, sg / cg  # (not jnp.tan: the sines and cosines are needed anyway)
     L, D, Y, T = fm.L, fm.D, fm.Y, fm.T
     mv = m * vt
 

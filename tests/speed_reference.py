@@ -1,10 +1,10 @@
 """The implementations before the speed work of issue 18, kept as references for the equality tests.
 
 Copied verbatim from the commit before the change (only the names changed): the SMC's fused Lie
-terms (one ``jax.linearize`` with 7 tangents), the LAPACK-SVD guarded solve, and the gather-based
-aero table lookup and coefficient build-up. ``use_reference`` swaps them into the package for the
-duration of a ``with`` block (tracing inside the block uses them; compiled functions keep what they
-traced; the caches are cleared on entry and exit).
+terms (one ``jax.linearize`` with 7 tangents), the LAPACK-SVD guarded solve, the aero table lookup
+and coefficient build-up, the atmosphere (two powers and an exp) and the force/moment build-up.
+``use_reference`` swaps them into the package for the duration of a ``with`` block (tracing inside
+the block uses them; the jax caches are cleared on entry and exit).
 """
 
 from __future__ import annotations
@@ -24,7 +24,19 @@ from harv_jax.control import smc
 from harv_jax.control.lie import Y_INDEX, LieTerms1, LieTerms2, controller_model, output_y
 from harv_jax.control.smc import SolveInfo
 from harv_jax.dynamics import eom
-from harv_jax.units import DEG_PER_RAD
+from harv_jax.dynamics.atmosphere import (
+    G0_MPS2,
+    H_TROPOPAUSE_M,
+    LAPSE_KPM,
+    N_EXP,
+    R_JPKGK,
+    RHO_SL_SLUGFT3,
+    T0_K,
+    T11_K,
+    THETA11,
+)
+from harv_jax.dynamics.eom import V_FLOOR_FPS, ForcesMoments
+from harv_jax.units import DEG_PER_RAD, M_PER_FT
 
 _COL = {name: i for i, name in enumerate(data.AERO_COLUMNS)}
 _N_SEGMENTS = len(data.ALPHA_DEG_GRID) - 1
@@ -166,13 +178,57 @@ def smc_lie_terms_reference(x: jnp.ndarray, params: AircraftParams) -> tuple[Lie
     return y_terms, pw_terms
 
 
+def density_slugft3_reference(h_ft: jnp.ndarray) -> jnp.ndarray:
+    """Air density, slug/ft^3, at altitude h_ft (rho(25,000 ft) = 1.06513e-3)."""
+    h_m = h_ft * M_PER_FT
+    theta = (T0_K - LAPSE_KPM * jnp.minimum(h_m, H_TROPOPAUSE_M)) / T0_K
+    rho_tropo = RHO_SL_SLUGFT3 * theta ** (N_EXP - 1.0)
+    rho_strato = (
+        RHO_SL_SLUGFT3
+        * THETA11 ** (N_EXP - 1.0)
+        * jnp.exp(-G0_MPS2 * (jnp.maximum(h_m, H_TROPOPAUSE_M) - H_TROPOPAUSE_M) / (R_JPKGK * T11_K))
+    )
+    return jnp.where(h_m < H_TROPOPAUSE_M, rho_tropo, rho_strato)
+
+
+def forces_moments_reference(
+    vt_fps: jnp.ndarray,
+    alpha_rad: jnp.ndarray,
+    beta_rad: jnp.ndarray,
+    pqr_radps: jnp.ndarray,
+    h_ft: jnp.ndarray,
+    u_rad: jnp.ndarray,
+    params: AircraftParams,
+    control_forces: bool = True,
+) -> ForcesMoments:
+    """Aerodynamic forces and moments plus thrust at one flight condition."""
+    rho = density_slugft3_reference(h_ft)
+    qbar = 0.5 * rho * vt_fps * vt_fps
+    thrust = params.throttle * params.T_max * (rho / RHO_SL_SLUGFT3) ** 0.7
+    c = coefficients_reference(
+        alpha_rad, beta_rad, pqr_radps, jnp.maximum(vt_fps, V_FLOOR_FPS), u_rad, params,
+        control_forces,
+    )  # fmt: skip
+    qs = qbar * params.S
+    return ForcesMoments(
+        L=qs * c.CL,
+        D=qs * c.CD,
+        Y=qs * c.CY,
+        Lroll=qs * params.b * c.Cl,
+        M=qs * params.cbar * c.Cm,
+        N=qs * params.b * c.Cn,
+        T=thrust,
+    )
+
+
 @contextlib.contextmanager
 def use_reference() -> Iterator[None]:
-    """Swap the reference implementations into the package (SMC Lie terms and solve, aero lookup)."""
+    """Swap the reference implementations into the package (SMC Lie terms and solve, aero, forces)."""
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(smc, "smc_lie_terms", smc_lie_terms_reference)
         mp.setattr(smc, "guarded_solve", guarded_solve_reference)
         mp.setattr(eom, "coefficients", coefficients_reference)
+        mp.setattr(eom, "forces_moments", forces_moments_reference)
         mp.setattr(aero, "lookup", lookup_reference)
         jax.clear_caches()  # jax caches traces per Python function: trace again with the references
         try:
