@@ -28,7 +28,14 @@ from pathlib import Path
 # allow `python benchmarks/bench_dynamics.py` from the repository root (benchmarks/ is not installed)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.common import cpu_cores, machine_name, set_host_devices, write_json  # noqa: E402
+from benchmarks.common import (  # noqa: E402
+    cpu_cores,
+    cpu_model,
+    load_average_1min,
+    machine_name,
+    set_host_devices,
+    write_json,
+)
 
 
 def _host_devices_from_argv(argv: list[str]) -> int:
@@ -177,6 +184,7 @@ def main(argv: list[str] | None = None) -> dict:
     dev = jax.devices()[0]
     machine = machine_name(args.machine)
 
+    load_before = load_average_1min()
     print(f"device {dev.platform}:{dev.device_kind}  jax {jax.__version__}  dtype {jnp.dtype(dtype).name}")
     np_res = bench_numpy(n_steps=200 if args.quick else 1000, repeats=3, seed=args.seed)
     print(f"numpy (1 aircraft, Python loop): {np_res['steps_per_s']:.0f} steps/s "
@@ -200,6 +208,8 @@ def main(argv: list[str] | None = None) -> dict:
         "platform": platform.platform(),
         "device": {"platform": dev.platform, "kind": dev.device_kind, "count": jax.local_device_count()},
         "cpu_count": os.cpu_count(),
+        "cpu_model": cpu_model(),
+        "load_average_1min_before_after": [load_before, load_average_1min()],
         "dtype": jnp.dtype(dtype).name,
         "dt_s": DT_S,
         "quick": args.quick,

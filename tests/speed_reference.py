@@ -2,7 +2,8 @@
 
 Copied verbatim from the commit before the change (only the names changed): the SMC's fused Lie
 terms (one ``jax.linearize`` with 7 tangents), the LAPACK-SVD guarded solve, the aero table lookup
-and coefficient build-up, the atmosphere (two powers and an exp) and the force/moment build-up.
+and coefficient build-up, the atmosphere (two powers and an exp), the force/moment build-up and
+the wind-axis derivatives.
 ``use_reference`` swaps them into the package for the duration of a ``with`` block (tracing inside
 the block uses them; the jax caches are cleared on entry and exit).
 """
@@ -20,7 +21,7 @@ from harv_jax.aircraft import aero
 from harv_jax.aircraft import data_harv as data
 from harv_jax.aircraft.aero import AeroCoeffs, wrap_angle_rad
 from harv_jax.aircraft.params import AircraftParams
-from harv_jax.control import smc
+from harv_jax.control import lie, smc
 from harv_jax.control.lie import Y_INDEX, LieTerms1, LieTerms2, controller_model, output_y
 from harv_jax.control.smc import SolveInfo
 from harv_jax.dynamics import eom
@@ -35,7 +36,7 @@ from harv_jax.dynamics.atmosphere import (
     T11_K,
     THETA11,
 )
-from harv_jax.dynamics.eom import V_FLOOR_FPS, ForcesMoments
+from harv_jax.dynamics.eom import V_FLOOR_FPS, ForcesMoments, body_rate_derivatives
 from harv_jax.units import DEG_PER_RAD, M_PER_FT
 
 _COL = {name: i for i, name in enumerate(data.AERO_COLUMNS)}
@@ -221,6 +222,51 @@ def forces_moments_reference(
     )
 
 
+def derivatives_reference(
+    x: jnp.ndarray, u: jnp.ndarray, params: AircraftParams, control_forces: bool = True
+) -> jnp.ndarray:
+    """Wind-axis state derivative x_dot [10] of the paper's model (MODEL.md verified forms).
+
+    Args:
+        x: [10] state [V, alpha, beta, p, q, r, mu, gamma, chi, h] (ft/s, rad, rad/s, ft).
+        u: [3] deflections [de, da, dr], rad (used as given; limits are the actuator model's job).
+        params: aircraft parameters (pytree; vmap it together with x and u).
+        control_forces: False gives the SMC's controller model (no control-surface forces).
+
+    Returns:
+        [10] time derivative. Singular at V = 0, cos(beta) = 0, cos(gamma) = 0.
+    """
+    vt, alpha, beta = x[0], x[1], x[2]
+    pqr = x[3:6]
+    p, r = pqr[0], pqr[2]
+    q = pqr[1]
+    mu, gamma, h = x[6], x[7], x[9]
+    fm = forces_moments_reference(vt, alpha, beta, pqr, h, u, params, control_forces)
+    m, g = params.mass_slug, params.g
+    sa, ca = jnp.sin(alpha), jnp.cos(alpha)
+    sb, cb, tb = jnp.sin(beta), jnp.cos(beta), jnp.tan(beta)
+    smu, cmu = jnp.sin(mu), jnp.cos(mu)
+    sg, cg, tg = jnp.sin(gamma), jnp.cos(gamma), jnp.tan(gamma)
+    L, D, Y, T = fm.L, fm.D, fm.Y, fm.T
+    mv = m * vt
+
+    v_dot = (T * ca * cb - D - m * g * sg) / m
+    q_w = (L + T * sa - m * g * cmu * cg) / mv  # = -F_z,wind / (m V)
+    r_w = (Y - T * ca * sb + m * g * smu * cg) / mv  # = F_y,wind / (m V)
+    alpha_dot = q - tb * (p * ca + r * sa) - q_w / cb
+    beta_dot = r_w + p * sa - r * ca
+    p_w = (p * ca + r * sa) / cb + tb * q_w
+    mu_dot = p_w + tg * (q_w * smu + r_w * cmu)
+    gamma_dot = q_w * cmu - r_w * smu
+    chi_dot = (q_w * smu + r_w * cmu) / cg
+    h_dot = vt * sg
+    pqr_dot = body_rate_derivatives(pqr, fm.Lroll, fm.M, fm.N, params)
+    return jnp.stack(
+        [v_dot, alpha_dot, beta_dot, pqr_dot[0], pqr_dot[1], pqr_dot[2],
+         mu_dot, gamma_dot, chi_dot, h_dot]
+    )  # fmt: skip
+
+
 @contextlib.contextmanager
 def use_reference() -> Iterator[None]:
     """Swap the reference implementations into the package (SMC Lie terms and solve, aero, forces)."""
@@ -229,6 +275,7 @@ def use_reference() -> Iterator[None]:
         mp.setattr(smc, "guarded_solve", guarded_solve_reference)
         mp.setattr(eom, "coefficients", coefficients_reference)
         mp.setattr(eom, "forces_moments", forces_moments_reference)
+        mp.setattr(lie, "derivatives", derivatives_reference)
         mp.setattr(aero, "lookup", lookup_reference)
         jax.clear_caches()  # jax caches traces per Python function: trace again with the references
         try:

@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jnp
 
 from harv_jax.aircraft.params import AircraftParams
-from harv_jax.dynamics.eom import derivatives, wind_derivatives
+from harv_jax.dynamics.eom import derivatives, wind_derivatives, wind_trig
 
 #: Indices of the controlled outputs y = [alpha, beta, mu] in the wind-axis state.
 Y_INDEX = (1, 2, 6)
@@ -152,11 +152,17 @@ def _z_parts(
     h: jnp.ndarray,
     u: jnp.ndarray,
     params: AircraftParams,
+    trig: tuple[jnp.ndarray, ...] | None = None,
 ) -> jnp.ndarray:
-    """Z = [F(x, u) (10), p_w(x) (1)] of the controller model, the state passed by component."""
-    xd = wind_derivatives(vt, alpha, beta, pqr, mu, gamma, h, u, params, control_forces=False)
+    """Z = [F(x, u) (10), p_w(x) (1)] of the controller model, the state passed by component.
+
+    ``trig``: ``wind_trig`` of the angles where they are constants of a derivative pass (else None).
+    """
+    trig = wind_trig(alpha, beta, mu, gamma) if trig is None else trig
+    xd = wind_derivatives(vt, alpha, beta, pqr, mu, gamma, h, u, params, False, trig)
     p, q, r = pqr[0], pqr[1], pqr[2]
-    p_w = jnp.cos(beta) * (p * jnp.cos(alpha) + r * jnp.sin(alpha)) + jnp.sin(beta) * (q - xd[1])
+    sa, ca, sb, cb = trig[:4]
+    p_w = cb * (p * ca + r * sa) + sb * (q - xd[1])
     return jnp.concatenate([xd, p_w[None]])
 
 
@@ -188,21 +194,22 @@ def smc_lie_terms(x: jnp.ndarray, params: AircraftParams) -> tuple[LieTerms2, Li
         return _z_parts(vt_, alpha_, beta_, pqr_, mu_, gamma_, h_, u0, params)
 
     primals = (vt, alpha, beta, pqr, mu, gamma, h)
-    z_val = z_state(*primals)
+    trig = wind_trig(alpha, beta, mu, gamma)  # shared by the primal and the passes in u and in p, q, r
+    z_val = _z_parts(*primals, u0, params, trig)
     f = z_val[:10]
     # L_f: one tangent through the whole model along f (chi, f[8], does not enter)
     _, dz_f = jax.jvp(z_state, primals, (f[0], f[1], f[2], f[3:6], f[6], f[7], f[9]))
 
     # g: the input columns, a tangent in u only (nonzero rows: p_dot, q_dot, r_dot)
     def z_u(uu: jnp.ndarray) -> jnp.ndarray:
-        return _z_parts(vt, alpha, beta, pqr, mu, gamma, h, uu, params)
+        return _z_parts(vt, alpha, beta, pqr, mu, gamma, h, uu, params, trig)
 
     eye = jnp.eye(3, dtype=x.dtype)
     g_pqr = jax.vmap(lambda du: jax.jvp(z_u, (u0,), (du,))[1][3:6])(eye)  # [3 (u_j), 3 (pqr)] = g^T
 
     # L_g: tangents in the body rates only, along each g_j
     def z_pqr(pqr_: jnp.ndarray) -> jnp.ndarray:
-        return _z_parts(vt, alpha, beta, pqr_, mu, gamma, h, u0, params)
+        return _z_parts(vt, alpha, beta, pqr_, mu, gamma, h, u0, params, trig)
 
     dz_g = jax.vmap(lambda dp: jax.jvp(z_pqr, (pqr,), (dp,))[1])(g_pqr)  # [3, 11]
     y_terms = LieTerms2(y=output_y(x), lf_y=f[idx], lf2_y=dz_f[idx], lglf_y=dz_g[:, idx].T)
