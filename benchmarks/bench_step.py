@@ -76,10 +76,10 @@ def build(batch: int, n_steps: int, policy: str | None, seed: int) -> dict:
 
     def loop(step, n_carry):
         def one(*args):
-            carry, prm = args[:n_carry], args[n_carry]
+            carry, const = args[:n_carry], args[n_carry:]
 
             def body(c, _):
-                return step(*c, prm), None
+                return step(*c, *const), None
 
             return jax.lax.scan(body, carry, None, length=n_steps)[0]
 
