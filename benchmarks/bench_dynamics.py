@@ -10,7 +10,8 @@ parameters: mass, inertia and aero_scale varied) of a ``lax.scan`` of N steps of
 and the best of a few timed runs (``block_until_ready``), and reports aircraft-steps/s = B * N / time.
 In the same run it steps one aircraft at a time with the plain-numpy wind-axis model
 (``benchmarks/numpy_harv.py``: RK4 + the same actuator, a Python loop as a Gym env does) and reports
-the ratio best-batch / numpy. Results go to ``benchmarks/results/dynamics_<machine>.json``.
+the ratio best-batch / numpy. Results go to ``benchmarks/results/dynamics_<machine>.json``
+(``dynamics_<machine>_quick.json`` with ``--quick``).
 
 Runs on CPU or GPU (whatever ``jax.devices()[0]`` is); needs only jax, flax, numpy and harv_jax.
 """
@@ -233,7 +234,8 @@ def main(argv: list[str] | None = None) -> dict:
             "meets_target": best["ratio_vs_numpy"] >= TARGET_RATIO,
         },
     }
-    path = write_json(args.out_dir, f"dynamics_{machine}.json", result)
+    name = f"dynamics_{machine}_quick.json" if args.quick else f"dynamics_{machine}.json"
+    path = write_json(args.out_dir, name, result)
     print(f"best: batch {best['batch']}, {best['aircraft_steps_per_s']:.3e} aircraft-steps/s = "
           f"{best['ratio_vs_numpy']:.0f}x numpy (target {TARGET_RATIO:.0f}x)")  # fmt: skip
     print(f"wrote {path}")
