@@ -10,7 +10,8 @@ parameters: mass, inertia and aero_scale varied) of a ``lax.scan`` of N steps of
 and the best of a few timed runs (``block_until_ready``), and reports aircraft-steps/s = B * N / time.
 In the same run it steps one aircraft at a time with the plain-numpy wind-axis model
 (``benchmarks/numpy_harv.py``: RK4 + the same actuator, a Python loop as a Gym env does) and reports
-the ratio best-batch / numpy. Results go to ``benchmarks/results/dynamics_<machine>.json``.
+the ratio best-batch / numpy. Results go to ``benchmarks/results/dynamics_<machine>.json``
+(``dynamics_<machine>_quick.json`` with ``--quick``).
 
 Runs on CPU or GPU (whatever ``jax.devices()[0]`` is); needs only jax, flax, numpy and harv_jax.
 """
@@ -28,7 +29,14 @@ from pathlib import Path
 # allow `python benchmarks/bench_dynamics.py` from the repository root (benchmarks/ is not installed)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.common import cpu_cores, machine_name, set_host_devices, write_json  # noqa: E402
+from benchmarks.common import (  # noqa: E402
+    cpu_cores,
+    cpu_model,
+    load_average_1min,
+    machine_name,
+    set_host_devices,
+    write_json,
+)
 
 
 def _host_devices_from_argv(argv: list[str]) -> int:
@@ -177,6 +185,7 @@ def main(argv: list[str] | None = None) -> dict:
     dev = jax.devices()[0]
     machine = machine_name(args.machine)
 
+    load_before = load_average_1min()
     print(f"device {dev.platform}:{dev.device_kind}  jax {jax.__version__}  dtype {jnp.dtype(dtype).name}")
     np_res = bench_numpy(n_steps=200 if args.quick else 1000, repeats=3, seed=args.seed)
     print(f"numpy (1 aircraft, Python loop): {np_res['steps_per_s']:.0f} steps/s "
@@ -200,6 +209,8 @@ def main(argv: list[str] | None = None) -> dict:
         "platform": platform.platform(),
         "device": {"platform": dev.platform, "kind": dev.device_kind, "count": jax.local_device_count()},
         "cpu_count": os.cpu_count(),
+        "cpu_model": cpu_model(),
+        "load_average_1min_before_after": [load_before, load_average_1min()],
         "dtype": jnp.dtype(dtype).name,
         "dt_s": DT_S,
         "quick": args.quick,
@@ -223,7 +234,8 @@ def main(argv: list[str] | None = None) -> dict:
             "meets_target": best["ratio_vs_numpy"] >= TARGET_RATIO,
         },
     }
-    path = write_json(args.out_dir, f"dynamics_{machine}.json", result)
+    name = f"dynamics_{machine}_quick.json" if args.quick else f"dynamics_{machine}.json"
+    path = write_json(args.out_dir, name, result)
     print(f"best: batch {best['batch']}, {best['aircraft_steps_per_s']:.3e} aircraft-steps/s = "
           f"{best['ratio_vs_numpy']:.0f}x numpy (target {TARGET_RATIO:.0f}x)")  # fmt: skip
     print(f"wrote {path}")

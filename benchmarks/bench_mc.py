@@ -6,6 +6,7 @@ Usage::
     python benchmarks/bench_mc.py                        # 1000 runs x 60 s, smc and hybrid, local devices
     python benchmarks/bench_mc.py --envelope             # + the 100 x 100 envelope map per controller
     python benchmarks/bench_mc.py --quick                # 64 runs x 5 s (+ 8 x 8 map): a sanity run
+    python benchmarks/bench_mc.py --reference            # + the pre-issue-18 implementation, same inputs
 
 What is timed: ``harv_jax.evaluation.monte_carlo.run_mc`` exactly as ``harv-jax mc`` calls it (common
 random initial states from the paper's reset bounds, nominal aircraft, alpha_d = 0.349 rad, dt 0.01 s,
@@ -28,15 +29,23 @@ FLOPs/step x runs x steps / run time; the ceiling is the best fp32 square matmul
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime as _dt
 import platform
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root, for benchmarks.*
 
-from benchmarks.common import cpu_cores, load_average_1min, set_host_devices, write_json  # noqa: E402
+from benchmarks.common import (  # noqa: E402
+    cpu_cores,
+    cpu_model,
+    load_average_1min,
+    set_host_devices,
+    write_json,
+)
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
 DT_S = 0.01
@@ -182,6 +191,19 @@ def bench_envelope(name: str, ctrl, n: int, n_steps: int, chunk: int, seed: int)
     }
 
 
+@contextlib.contextmanager
+def _implementation(name: str) -> Iterator[None]:
+    """``current``: the package as it is; ``reference``: the pre-issue-18 SMC/aero/atmosphere swapped in."""
+    if name == "current":
+        yield
+        return
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from speed_reference import use_reference
+
+    with use_reference():
+        yield
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--controllers", default="smc,hybrid", help="comma list of smc, rl, hybrid")
@@ -197,6 +219,10 @@ def main() -> None:
     ap.add_argument("--matmul-n", type=int, default=None, help="matmul size (CPU 2048, GPU 8192)")
     ap.add_argument("--host-devices", type=int, default=cpu_cores(), help="XLA host devices on a CPU")
     ap.add_argument("--quick", action="store_true", help="64 runs x 5 s (+ 8 x 8 map): a sanity run")
+    ap.add_argument(
+        "--reference", action="store_true",
+        help="also time the implementation before issue 18 (tests/speed_reference.py), same inputs",
+    )  # fmt: skip
     ap.add_argument("--machine", default=None)
     ap.add_argument("--note", default="", help="free text stored in the JSON (e.g. 'machine shared')")
     ap.add_argument("--out-dir", type=Path, default=RESULTS_DIR)
@@ -227,35 +253,46 @@ def main() -> None:
     ceiling = matmul_ceiling(matmul_n)
     print(f"fp32 matmul ceiling: {ceiling['flops_per_s'] / 1e9:,.1f} GFLOP/s (n = {matmul_n})", flush=True)
     rows, env_rows, skipped = [], [], {}
+    impls = ["current"] + (["reference"] if args.reference else [])
     for name in [c.strip() for c in args.controllers.split(",") if c.strip()]:
-        try:
-            ctrl = build_controller(name, args.policy)
-        except Exception as e:  # e.g. hybrid not built yet: record and go on
-            skipped[name] = f"{type(e).__name__}: {e}"
-            print(f"{name}: skipped ({skipped[name]})", flush=True)
-            continue
-        r = bench_controller(
-            name, ctrl, runs, n_steps, chunk, args.seed, ceiling["flops_per_s"], args.repeats
-        )
-        again = matmul_ceiling(matmul_n)  # re-measured next to every timing; the best value is used
-        ceiling["flops_per_s"] = max(ceiling["flops_per_s"], again["flops_per_s"])
-        rows.append(r)
-        print(
-            f"{name:>7}: {runs} runs x {n_steps} steps: compile {r['compile_s']:.1f} s, "
-            f"run {r['run_s']:.2f} s ({r['run_steps_per_s']:,.0f} run-steps/s), "
-            f"{r['step_cost'].get('flops', 0):,.0f} FLOPs/step = "
-            f"{100 * r['fraction_of_matmul_ceiling']:.2f}% of the matmul ceiling, "
-            f"recovery {r['recovery_rate']:.3f}",
-            flush=True,
-        )
-        if args.envelope:
-            e = bench_envelope(name, ctrl, env_n, n_steps, env_chunk, args.seed)
-            env_rows.append(e)
+        for impl in impls:
+            with _implementation(impl):
+                try:
+                    ctrl = build_controller(name, args.policy)
+                except Exception as e:  # e.g. hybrid not built yet: record and go on
+                    skipped[name] = f"{type(e).__name__}: {e}"
+                    print(f"{name}: skipped ({skipped[name]})", flush=True)
+                    break
+                r = bench_controller(
+                    name, ctrl, runs, n_steps, chunk, args.seed, ceiling["flops_per_s"], args.repeats
+                )
+                r["implementation"] = impl
+                e = (
+                    bench_envelope(name, ctrl, env_n, n_steps, env_chunk, args.seed)
+                    if args.envelope
+                    else None
+                )
+            again = matmul_ceiling(matmul_n)  # re-measured next to every timing; the best value is used
+            ceiling["flops_per_s"] = max(ceiling["flops_per_s"], again["flops_per_s"])
+            rows.append(r)
             print(
-                f"{name:>7}: envelope {env_n} x {env_n} = {e['runs']} runs: compile {e['compile_s']:.1f} s, "
-                f"run {e['run_s']:.1f} s, recovered {100 * e['recovery_fraction']:.1f}%",
+                f"{name:>7} ({impl}): {runs} runs x {n_steps} steps: compile {r['compile_s']:.1f} s, "
+                f"run {r['run_s']:.2f} s ({r['run_steps_per_s']:,.0f} run-steps/s), "
+                f"{r['step_cost'].get('flops', 0):,.0f} FLOPs/step = "
+                f"{100 * r['fraction_of_matmul_ceiling']:.2f}% of the matmul ceiling, "
+                f"recovery {r['recovery_rate']:.3f}",
                 flush=True,
             )
+            if e is not None:
+                e["implementation"] = impl
+                env_rows.append(e)
+                print(
+                    f"{name:>7} ({impl}): envelope {env_n} x {env_n} = {e['runs']} runs: compile "
+                    f"{e['compile_s']:.1f} s, run {e['run_s']:.1f} s, "
+                    f"recovered {100 * e['recovery_fraction']:.1f}%",
+                    flush=True,
+                )
+    rows_current = [r for r in rows if r["implementation"] == "current"]
     for r in rows:  # against the best ceiling of the whole run (a busy machine otherwise inflates it)
         r["fraction_of_matmul_ceiling"] = r["achieved_flops_per_s"] / ceiling["flops_per_s"]
     policy_cost = (
@@ -263,14 +300,14 @@ def main() -> None:
     )
     full = not args.quick and runs == 1000 and n_steps == 6000
     targets = {}
-    hybrid = next((r for r in rows if r["controller"] == "hybrid"), None)
+    hybrid = next((r for r in rows_current if r["controller"] == "hybrid"), None)
     if full and hybrid is not None:
         key = "mc_1000_hybrid_gpu_h100" if gpu else "mc_1000_hybrid_cpu_2core"
         targets[key] = {"target_run_s": TARGETS_S[key], "run_s": hybrid["run_s"],
                         "met": hybrid["run_s"] <= TARGETS_S[key]}  # fmt: skip
     if args.envelope and not args.quick and env_n == 100 and n_steps == 6000 and not gpu:
         key = "envelope_10000_cpu_2core"
-        for e in env_rows:
+        for e in (e for e in env_rows if e["implementation"] == "current"):
             targets[f"{key}_{e['controller']}"] = {"target_run_s": TARGETS_S[key], "run_s": e["run_s"],
                                                    "met": e["run_s"] <= TARGETS_S[key]}  # fmt: skip
     result = {
@@ -285,6 +322,7 @@ def main() -> None:
         "device": {"platform": dev.platform, "kind": dev.device_kind, "count": jax.local_device_count()},
         "cpu_affinity": cpu_cores(),
         "load_average_1min": load_average_1min(),
+        "cpu_model": cpu_model(),
         "config": {
             "runs": runs,
             "duration_s": n_steps * DT_S,

@@ -26,6 +26,21 @@ def load_average_1min() -> float | None:
     return os.getloadavg()[0] if hasattr(os, "getloadavg") else None
 
 
+def cpu_model() -> str:
+    """The CPU model (``/proc/cpuinfo`` on Linux, else ``platform.processor()``) and its SIMD level."""
+    import platform
+
+    name, flags = platform.processor() or "unknown", ""
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+        name = re.search(r"^model name\s*:\s*(.+)$", text, re.M).group(1).strip()
+        flags = re.search(r"^flags\s*:\s*(.+)$", text, re.M).group(1)
+    except (OSError, AttributeError):
+        pass
+    simd = "avx512f" if " avx512f" in flags else "avx2" if " avx2" in flags else ""
+    return f"{name} ({simd})" if simd else name
+
+
 def write_json(out_dir: Path, file_name: str, result: dict[str, Any]) -> Path:
     """Write a benchmark result as indented JSON to ``out_dir/file_name``; returns the path."""
     out_dir.mkdir(parents=True, exist_ok=True)

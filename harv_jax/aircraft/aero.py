@@ -83,13 +83,7 @@ def coefficients(
     def k(name):
         return c[_COL[name]]
 
-    kf = 1.0 if control_forces else 0.0
-    CY = (
-        k("cy_b") * beta_rad
-        + k("cy_p") * ph
-        + k("cy_r") * rh
-        + kf * (k("cy_da") * da + (k("cy_del") + k("cy_der")) * de + k("cy_dr") * dr)
-    )
+    CY = k("cy_b") * beta_rad + k("cy_p") * ph + k("cy_r") * rh
     Cl = (
         k("croll_b") * beta_rad
         + k("croll_p") * ph
@@ -106,7 +100,11 @@ def coefficients(
         + (k("cn_del") + k("cn_der")) * de
         + k("cn_dr") * dr
     )
-    CD = k("cd0") + k("cd_q") * qh + kf * (k("cd_del") + k("cd_der")) * de
-    CL = k("clift0") + k("clift_q") * qh + kf * (k("clift_del") + k("clift_der")) * de
+    CD = k("cd0") + k("cd_q") * qh
+    CL = k("clift0") + k("clift_q") * qh
+    if control_forces:  # (a Python branch: the controller model has no control terms to differentiate)
+        CY = CY + (k("cy_da") * da + (k("cy_del") + k("cy_der")) * de + k("cy_dr") * dr)
+        CD = CD + (k("cd_del") + k("cd_der")) * de
+        CL = CL + (k("clift_del") + k("clift_der")) * de
     Cm = k("cm0") + k("cm_q") * qh + (k("cm_del") + k("cm_der")) * de
     return AeroCoeffs(CL=CL, CD=CD, CY=CY, Cl=Cl, Cm=Cm, Cn=Cn)

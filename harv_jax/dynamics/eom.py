@@ -18,11 +18,12 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 
 from harv_jax.aircraft.aero import coefficients
 from harv_jax.aircraft.params import AircraftParams
-from harv_jax.dynamics.atmosphere import RHO_SL_SLUGFT3, density_slugft3
+from harv_jax.dynamics.atmosphere import density_and_thrust_lapse
 from harv_jax.dynamics.state import BodyState, check_shape
 
 #: Airspeed floor for the non-dimensional rates p b / (2V) etc., ft/s (guards V -> 0 only).
@@ -52,9 +53,9 @@ def forces_moments(
     control_forces: bool = True,
 ) -> ForcesMoments:
     """Aerodynamic forces and moments plus thrust at one flight condition."""
-    rho = density_slugft3(h_ft)
+    rho, lapse = density_and_thrust_lapse(h_ft)
     qbar = 0.5 * rho * vt_fps * vt_fps
-    thrust = params.throttle * params.T_max * (rho / RHO_SL_SLUGFT3) ** 0.7
+    thrust = params.throttle * params.T_max * lapse
     c = coefficients(
         alpha_rad, beta_rad, pqr_radps, jnp.maximum(vt_fps, V_FLOOR_FPS), u_rad, params,
         control_forces,
@@ -108,17 +109,76 @@ def derivatives(
     """
     check_shape(x, (10,), "state x [V, alpha, beta, p, q, r, mu, gamma, chi, h]")
     check_shape(u, (3,), "control u [de, da, dr]")
-    vt, alpha, beta = x[0], x[1], x[2]
-    pqr = x[3:6]
-    p, r = pqr[0], pqr[2]
-    q = pqr[1]
-    mu, gamma, h = x[6], x[7], x[9]
+    return wind_derivatives(x[0], x[1], x[2], x[3:6], x[6], x[7], x[9], u, params, control_forces)
+
+
+@jax.custom_jvp
+def wind_trig(
+    alpha: jnp.ndarray, beta: jnp.ndarray, mu: jnp.ndarray, gamma: jnp.ndarray
+) -> tuple[jnp.ndarray, ...]:
+    """(sin, cos) of alpha, beta, mu, gamma, in that order (8 values), each evaluated once.
+
+    XLA's CPU fusion otherwise copies a sine or cosine into every fusion that reads it (the SMC's Lie
+    terms evaluated ~130 sines and cosines per aircraft instead of 8). A loop is a fusion boundary that
+    XLA keeps (``optimization_barrier`` is removed before fusion on the CPU): the values are computed in
+    a ``while_loop`` that runs once, with a trip count XLA cannot fold. The derivative rule reuses the
+    values instead of creating new trigonometric ops.
+    """
+    angles = jnp.stack([alpha, beta, mu, gamma])
+    if jax.default_backend() != "cpu":  # (an accelerator evaluates a loop condition on the host: no loop)
+        return tuple(f(angles[k]) for k in range(4) for f in (jnp.sin, jnp.cos))
+    once = 1 + (angles[0] * 0.0 > 1.0).astype(jnp.int32)  # = 1 (also for NaN); opaque to XLA
+
+    def body(carry):
+        i, _ = carry
+        return i + 1, jnp.stack([jnp.sin(angles), jnp.cos(angles)], axis=-1)
+
+    _, sc = jax.lax.while_loop(
+        lambda c: c[0] < once, body, (jnp.zeros((), jnp.int32), jnp.zeros((4, 2), angles.dtype))
+    )
+    return tuple(sc[k, j] for k in range(4) for j in range(2))
+
+
+@wind_trig.defjvp
+def _wind_trig_jvp(primals, tangents):
+    values = wind_trig(*primals)
+    d = []
+    for k, dt in enumerate(tangents):
+        s, c = values[2 * k], values[2 * k + 1]
+        d += [c * dt, -s * dt]
+    return values, tuple(d)
+
+
+def wind_derivatives(
+    vt: jnp.ndarray,
+    alpha: jnp.ndarray,
+    beta: jnp.ndarray,
+    pqr: jnp.ndarray,
+    mu: jnp.ndarray,
+    gamma: jnp.ndarray,
+    h: jnp.ndarray,
+    u: jnp.ndarray,
+    params: AircraftParams,
+    control_forces: bool = True,
+    trig: tuple[jnp.ndarray, ...] | None = None,
+) -> jnp.ndarray:
+    """``derivatives`` with the state passed by component (chi does not enter).
+
+    V ft/s, alpha/beta/mu/gamma rad, pqr [3] rad/s, h ft. Separate arguments let forward-mode
+    autodiff push a tangent through some components only (e.g. the body rates) without
+    differentiating the rest of the model (``harv_jax.control.lie``).
+
+    Args:
+        trig: optional ``wind_trig(alpha, beta, mu, gamma)``, computed by the caller; pass it only
+            where the angles are constants (a derivative pass in the rates or the controls), so that
+            such passes share one evaluation of the sines and cosines.
+    """
+    p, q, r = pqr[0], pqr[1], pqr[2]
     fm = forces_moments(vt, alpha, beta, pqr, h, u, params, control_forces)
     m, g = params.mass_slug, params.g
-    sa, ca = jnp.sin(alpha), jnp.cos(alpha)
-    sb, cb, tb = jnp.sin(beta), jnp.cos(beta), jnp.tan(beta)
-    smu, cmu = jnp.sin(mu), jnp.cos(mu)
-    sg, cg, tg = jnp.sin(gamma), jnp.cos(gamma), jnp.tan(gamma)
+    trig = wind_trig(alpha, beta, mu, gamma) if trig is None else trig
+    sa, ca, sb, cb, smu, cmu, sg, cg = trig
+    tb, tg = sb / cb, sg / cg  # (not jnp.tan: the sines and cosines are needed anyway)
     L, D, Y, T = fm.L, fm.D, fm.Y, fm.T
     mv = m * vt
 

@@ -1,0 +1,216 @@
+"""Cost of one closed-loop step: plant vs SMC vs hybrid, side by side, against the pre-issue-18 SMC.
+
+Usage::
+
+    python benchmarks/bench_step.py [--batch 1000] [--steps 100] [--repeats 11] [--quick] [--no-reference]
+
+What is timed (one XLA device, ``jit(vmap(lax.scan of --steps steps))`` over ``--batch`` aircraft from the
+Monte Carlo's reset bounds): a *plant step* (``to_wind``, actuator, RK4, the non-finite guard; the command is
+held) and a *closed-loop step* of the SMC and of the hybrid (the same plus ``controller.apply``), as
+``closed_loop`` runs them. The variants run interleaved, ``--repeats`` times each, and the best time is used,
+so the ratios hold on a busy machine. With the test references importable (``tests/speed_reference.py``,
+the implementation before issue 18: one linearization with 7 tangents, a LAPACK SVD per aircraft, the
+previous aero/atmosphere/forces) the same steps are also built from them ("reference"). XLA's cost
+analysis of one step of one aircraft (FLOPs, transcendentals) and the compile times are recorded.
+Results go to ``benchmarks/results/step_<machine>.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # the repository root, for benchmarks.*
+os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=1")
+
+from benchmarks.common import cpu_model, load_average_1min, machine_name, write_json  # noqa: E402
+
+DT_S = 0.01
+#: The issue's targets: SMC step <= 4 x plant step, hybrid step <= 1.3 x SMC step.
+TARGETS = {"smc_over_plant": 4.0, "hybrid_over_smc": 1.3}
+
+
+def build(batch: int, n_steps: int, policy: str | None, seed: int) -> dict:
+    """Compiled plant / smc / hybrid step loops with their arguments, compile times and per-step costs."""
+    import jax
+    import jax.numpy as jnp
+
+    from harv_jax.aircraft import harv
+    from harv_jax.commands.mc import build_controller
+    from harv_jax.dynamics.actuators import actuator_step
+    from harv_jax.dynamics.integrate import rk4_body_step
+    from harv_jax.dynamics.state import from_wind, is_finite, to_wind
+    from harv_jax.evaluation.monte_carlo import sample_mc_inputs
+
+    reference = jnp.array([0.349, 0.0, 0.0])
+    inputs = sample_mc_inputs(jax.random.key(seed), batch, harv())
+    params = inputs.params
+    body0 = jax.vmap(from_wind)(inputs.x0_wind)
+    delta0 = jnp.zeros((batch, 3))
+    hold = jnp.full((batch, 3), 0.01)
+
+    def plant_step(state, delta, cmd, prm):
+        x = to_wind(state)
+        delta = actuator_step(delta, cmd + 0.0 * x[:3], prm, DT_S)
+        new = rk4_body_step(state, delta, prm, DT_S)
+        ok = is_finite(new)
+        return jax.tree.map(lambda a, b: jnp.where(ok, a, b), new, state), delta
+
+    def closed_step(ctrl):
+        def step(state, delta, cstate, prm):
+            x = to_wind(state)
+            u, cstate, _ = ctrl.apply(cstate, x, reference, jax.random.key(0))
+            u = jnp.where(jnp.all(jnp.isfinite(u)), u, delta)
+            delta = actuator_step(delta, u, prm, DT_S)
+            new = rk4_body_step(state, delta, prm, DT_S)
+            ok = is_finite(new)
+            return jax.tree.map(lambda a, b: jnp.where(ok, a, b), new, state), delta, cstate
+
+        return step
+
+    def loop(step, n_carry):
+        def one(*args):
+            carry, const = args[:n_carry], args[n_carry:]
+
+            def body(c, _):
+                return step(*c, *const), None
+
+            return jax.lax.scan(body, carry, None, length=n_steps)[0]
+
+        return jax.jit(jax.vmap(one))
+
+    out = {}
+    variants = {"plant": (plant_step, 2, (body0, delta0, hold, params))}
+    for name in ("smc", "hybrid"):
+        ctrl = build_controller(name, policy)
+        cstate0 = jax.vmap(ctrl.init)(params)
+        variants[name] = (closed_step(ctrl), 3, (body0, delta0, cstate0, params))
+    for name, (step, n_carry, args) in variants.items():
+        t0 = time.perf_counter()
+        compiled = loop(step, n_carry).lower(*args).compile()
+        compile_s = time.perf_counter() - t0
+        one = jax.tree.map(lambda a: a[0], args)
+        cost = jax.jit(step).lower(*one).compile().cost_analysis()
+        cost = cost[0] if isinstance(cost, list | tuple) else cost
+        out[name] = {
+            "compiled": compiled,
+            "args": args,
+            "compile_s": compile_s,
+            "step_cost": {k: float(cost[k]) for k in ("flops", "transcendentals") if k in cost},
+        }
+    return out
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--batch", type=int, default=1000, help="aircraft per call")
+    ap.add_argument("--steps", type=int, default=100, help="steps per timed call")
+    ap.add_argument(
+        "--repeats", type=int, default=11, help="interleaved timed calls per variant (best is used)"
+    )
+    ap.add_argument("--policy", default=None, help="the hybrid's policy (default: the shipped policy)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--no-reference", action="store_true", help="skip the pre-issue-18 reference steps")
+    ap.add_argument("--quick", action="store_true", help="50 steps, 5 repeats")
+    ap.add_argument("--machine", default=None)
+    ap.add_argument("--note", default="", help="free text stored in the JSON (e.g. 'machine shared')")
+    ap.add_argument("--out-dir", type=Path, default=Path(__file__).resolve().parent / "results")
+    args = ap.parse_args(argv)
+    if args.quick:
+        args.steps, args.repeats = 50, 5
+
+    import jax
+
+    dev = jax.devices()[0]
+    machine = machine_name(args.machine)
+    load_before = load_average_1min()
+    print(f"device {dev.platform}:{dev.device_kind}  jax {jax.__version__}  cpu {cpu_model()}", flush=True)
+    sets = {"current": build(args.batch, args.steps, args.policy, args.seed)}
+    skipped = None
+    if not args.no_reference:
+        try:
+            sys.path.insert(0, str(ROOT / "tests"))
+            from speed_reference import use_reference
+
+            with use_reference():
+                sets["reference"] = build(args.batch, args.steps, args.policy, args.seed)
+        except ImportError as e:  # tests/ or pytest absent: the current implementation only
+            skipped = f"reference not built: {e}"
+            print(skipped, flush=True)
+    times = {(s, k): [] for s in sets for k in sets[s]}
+    for _ in range(args.repeats):
+        for s, built in sets.items():
+            for k, b in built.items():
+                t0 = time.perf_counter()
+                jax.block_until_ready(b["compiled"](*b["args"]))
+                times[(s, k)].append(time.perf_counter() - t0)
+    rows = {}
+    for s, built in sets.items():
+        us = {k: 1e6 * min(times[(s, k)]) / args.steps for k in built}
+        rows[s] = {
+            k: {
+                "us_per_step": us[k],
+                "aircraft_steps_per_s": args.batch * 1e6 / us[k],
+                "compile_s": built[k]["compile_s"],
+                "step_cost_one_aircraft": built[k]["step_cost"],
+            }
+            for k in built
+        }
+        rows[s]["ratios"] = {
+            "smc_over_plant": us["smc"] / us["plant"],
+            "hybrid_over_smc": us["hybrid"] / us["smc"],
+        }
+        print(
+            f"{s:>9}: plant {us['plant']:.0f} us/step, smc {us['smc']:.0f}, hybrid {us['hybrid']:.0f} "
+            f"(batch {args.batch}): smc/plant {us['smc'] / us['plant']:.2f}, hybrid/smc "
+            f"{us['hybrid'] / us['smc']:.2f}; compile plant {built['plant']['compile_s']:.1f} s, "
+            f"smc {built['smc']['compile_s']:.1f} s, hybrid {built['hybrid']['compile_s']:.1f} s",
+            flush=True,
+        )
+    if "reference" in rows:
+        cur, ref = rows["current"], rows["reference"]
+        rows["speedup_over_reference"] = {
+            k: ref[k]["us_per_step"] / cur[k]["us_per_step"] for k in ("plant", "smc", "hybrid")
+        }
+        print(f"speed-up over the reference: {rows['speedup_over_reference']}", flush=True)
+    ratios = rows["current"]["ratios"]
+    result = {
+        "benchmark": "step",
+        "machine": machine,
+        "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "note": args.note,
+        "jax": jax.__version__,
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "cpu_model": cpu_model(),
+        "device": {"platform": dev.platform, "kind": dev.device_kind, "count": jax.local_device_count()},
+        "load_average_1min_before_after": [load_before, load_average_1min()],
+        "config": {
+            "batch": args.batch,
+            "steps_per_call": args.steps,
+            "repeats": args.repeats,
+            "dt_s": DT_S,
+            "policy": args.policy or "shipped:full",
+            "seed": args.seed,
+            "dtype": "float32",
+            "devices_used": 1,
+        },  # fmt: skip
+        "method": "interleaved best-of-repeats of jit(vmap(scan)) per variant; see the module docstring",
+        "results": rows,
+        "skipped": skipped,
+        "targets": {k: {"target": v, "value": ratios[k], "met": ratios[k] <= v} for k, v in TARGETS.items()},
+    }
+    name = f"step_{machine}_quick.json" if args.quick else f"step_{machine}.json"
+    path = write_json(args.out_dir, name, result)
+    print(f"wrote {path}")
+    return result
+
+
+if __name__ == "__main__":
+    main()
