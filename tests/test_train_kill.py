@@ -249,7 +249,7 @@ def test_train_help_shows_preset_defaults(monkeypatch, capsys):
     text = " ".join(out.split())
     assert "smoke 600,000, paper-partial 10,000,000, paper-full 120,000,000" in text
     assert "--periods" in text and "--checkpoint-every" in text and "--watchdog-s" in text
-    assert "@SEED" in text
+    assert "[@seed]" in text
 
 
 def test_cli_train_uses_one_host_device():

@@ -660,8 +660,7 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, help="Replace an existing non-empty --out directory."),
         init_policy: str = typer.Option(
             None,
-            help="Start every seed from this policy (shipped:NAME, or a path, optionally with "
-            "@SEED): fine-tuning.",
+            help="Start every seed from this policy (shipped:NAME, or a path\\[@seed]): fine-tuning.",
         ),
         target_recovery: float = typer.Option(
             None,
