@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import cpu_cores, load_average_1min, write_json  # noqa: E402
+from common import cpu_cores, cpu_model, load_average_1min, write_json  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -67,19 +67,6 @@ def mc_smc(runs: int, seed: int) -> dict:
     return {"recovery_rate": s["recovery_rate"], "t_recover_p50_s": s["recovery_time_s"]["p50"],
             "control_tv_rad": s["control_tv"]["mean"], "compile_s": wall["compile"],
             "run_s": wall["run"]}  # fmt: skip
-
-
-def _cpu_model() -> str:
-    """The CPU model name from /proc/cpuinfo (or the platform's processor string)."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    import platform
-
-    return platform.processor() or "unknown"
 
 
 def main() -> None:
@@ -139,7 +126,7 @@ def main() -> None:
         },  # fmt: skip
         "smc_mc": smc,
         "cpu_cores": cpu_cores(),
-        "cpu_model": _cpu_model(),
+        "cpu_model": cpu_model(),
         "jax_version": __import__("jax").__version__,
         "load_average_1min_start": load0,
         "load_average_1min_end": load_average_1min(),
