@@ -56,22 +56,12 @@ def use_all_cpu_cores() -> None:
         os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={n}".strip()
 
 
-#: Commands that compute on one device on CPU (``harv_jax.ppo.train.default_devices``): they get one XLA host
-#: device, not one per core. The extra host devices were unused there, and they were the one difference
-#: between the CLI runs (1 hang in 15) and the script runs (0 in 10) of the same training
-#: (experiments/ppo_sweep_results.md, "Known problem").
-ONE_HOST_DEVICE_COMMANDS = ("train",)
-
-
-def _command_name(argv: list[str]) -> str | None:
-    """The sub-command in ``argv`` (the first argument that is not an option), or None."""
-    return next((a for a in argv if not a.startswith("-")), None)
-
-
 def main() -> None:
     """Console entry point: run the app; turn UsageError/ValueError into a one-line error, exit 2."""
-    if _command_name(sys.argv[1:]) not in ONE_HOST_DEVICE_COMMANDS:
-        use_all_cpu_cores()
+    # every command, train included, gets one XLA host device per core: with a single host device (no
+    # --xla_force_host_platform_device_count) multi-seed HARV training deadlocked in its first period in 4 of
+    # 4 runs, with two in 0 of 11 (experiments/ppo_sweep_results.md, "Known problem")
+    use_all_cpu_cores()
     try:
         app(standalone_mode=False)
     except typer.Exit as e:

@@ -252,12 +252,14 @@ def test_train_help_shows_preset_defaults(monkeypatch, capsys):
     assert "[@seed]" in text
 
 
-def test_cli_train_uses_one_host_device():
+def test_cli_train_uses_one_host_device_per_core(monkeypatch):
+    """train gets the host devices every command gets (with one, multi-seed training deadlocked)."""
     from harv_jax import cli
 
-    assert cli._command_name(["train", "--out", "x"]) == "train"
-    assert cli._command_name(["--help"]) is None
-    assert "train" in cli.ONE_HOST_DEVICE_COMMANDS
+    monkeypatch.setenv("XLA_FLAGS", "")
+    cli.use_all_cpu_cores()
+    assert "--xla_force_host_platform_device_count=" in __import__("os").environ["XLA_FLAGS"]
+    assert not hasattr(cli, "ONE_HOST_DEVICE_COMMANDS")
 
 
 # --------------------------------------------------------------------------------------------- real processes

@@ -130,6 +130,7 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=HERE / "results")
     ap.add_argument("--steps", type=int, default=None, help="env steps per seed (default: the preset's)")
     ap.add_argument("--skip-train", action="store_true", help="only (re)do the Monte Carlos and tables")
+    ap.add_argument("--in-process", action="store_true", help="train through the Python API, not the CLI")
     args = ap.parse_args()
     base = tomllib.loads(PRESET.read_text())
     if args.steps:
@@ -146,13 +147,10 @@ def main() -> None:
             cmd = [sys.executable, "-m", "harv_jax.cli", "train", "--preset", str(preset), "--seeds",
                    str(args.seeds), "--seed", str(args.seed), "--out", str(run_dir), "--force"]  # fmt: skip
             t0 = time.time()
-            with open(args.out / f"{name}.log", "w") as log:
-                r = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, cwd=ROOT)
-                if r.returncode == 3:  # the watchdog stopped a stalled run: continue it once
-                    again = [sys.executable, "-m", "harv_jax.cli", "train", "--resume", str(run_dir)]
-                    r = subprocess.run(again, stdout=log, stderr=subprocess.STDOUT, cwd=ROOT)
-                if r.returncode:
-                    raise SystemExit(f"{name}: harv-jax train failed ({r.returncode}); see {name}.log")
+            if args.in_process:
+                train_in_process(preset, args.seeds, args.seed, run_dir)
+            else:
+                train_cli(cmd, name, run_dir, args.out)
             wall = time.time() - t0
             shutil.rmtree(run_dir / "checkpoints", ignore_errors=True)  # resumable only by re-running
         else:
@@ -164,6 +162,52 @@ def main() -> None:
         print(name, json.dumps(per_seed), flush=True)
     write_table(results, args.out / "ablation.md")
     plot_curves(results, args.out)
+
+
+def train_cli(cmd: list[str], name: str, run_dir: Path, out: Path) -> None:
+    """``harv-jax train`` as a subprocess; a run the watchdog stopped (exit 3) is continued once."""
+    with open(out / f"{name}.log", "w") as log:
+        r = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, cwd=ROOT)
+        if r.returncode == 3:  # the watchdog stopped a stalled run: continue it once
+            again = [sys.executable, "-m", "harv_jax.cli", "train", "--resume", str(run_dir)]
+            r = subprocess.run(again, stdout=log, stderr=subprocess.STDOUT, cwd=ROOT)
+        if r.returncode:
+            raise SystemExit(f"{name}: harv-jax train failed ({r.returncode}); see {name}.log")
+
+
+def train_in_process(preset: Path, seeds: int, seed: int, run_dir: Path) -> None:
+    """The same training through the Python API (no progress display, TensorBoard or watchdog threads)."""
+    import jax
+
+    from harv_jax.commands.train import (
+        build_config,
+        export_policies,
+        make_eval_hook,
+        make_harv_env,
+        write_metrics_csv,
+    )
+    from harv_jax.ppo.train import harv_episode_metrics, make_train, run_training
+
+    cfg, env_table = build_config(str(preset), {"num_seeds": seeds, "seed": seed})
+    env, env_params = make_harv_env(env_table)
+    trainer = make_train(env, cfg, env_params, episode_metrics_fn=harv_episode_metrics)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    hook, _ = make_eval_hook(trainer, cfg, env_params, env_table, None, run_dir)
+
+    def progress(p: int, row: dict) -> None:
+        print(f"period {p + 1} {row['wall_s']:.0f} s", flush=True)
+
+    res = run_training(
+        jax.random.key(cfg.seed),
+        env,
+        env_params,
+        cfg,
+        trainer=trainer,
+        period_hook=hook,
+        progress_fn=progress,
+    )
+    write_metrics_csv(run_dir / "metrics.csv", res.history)
+    export_policies(run_dir, res.state, trainer, cfg, res.history)
 
 
 def _ms(values: list) -> str:
