@@ -222,15 +222,16 @@ def write_table(results: dict, path: Path) -> None:
     """Mean ± std over seeds of every variant."""
     rows = [
         "| variant | RL-only recovered | median recovery (s) | p95 (s) | control TV (rad) | spin recovered "
-        "| train wall (s) |",
-        "|---|---:|---:|---:|---:|---:|---:|",
+        "| spin recovery (s) | train wall (s) |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for name, r in results.items():
         s = r["seeds"]
         rows.append(
             f"| {name} | {_ms([x['recovery_rate'] for x in s])} | {_ms([x['t_recover_p50_s'] for x in s])} "
             f"| {_ms([x['t_recover_p95_s'] for x in s])} | {_ms([x['control_tv_rad'] for x in s])} "
-            f"| {sum(x['spin_recovered'] for x in s)}/{len(s)} | {r['train_wall_s']:.0f} |"
+            f"| {sum(x['spin_recovered'] for x in s)}/{len(s)} | {_ms([x['spin_t_recover_s'] for x in s])} "
+            f"| {r['train_wall_s']:.0f} |"
         )
     path.write_text("\n".join(rows) + "\n")
 
