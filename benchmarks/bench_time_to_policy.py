@@ -29,44 +29,37 @@ from common import cpu_cores, cpu_model, load_average_1min, write_json  # noqa: 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def mc_rl(policy_path: Path, runs: int, seed: int, randomize: bool = False) -> dict:
-    """RL-only Monte Carlo of one policy file: recovery rate, median recovery time, TV, wall times."""
+def mc(controller, runs: int, seed: int) -> dict:
+    """Monte Carlo of one controller (nominal aircraft): recovery rate, median time, TV, wall times."""
     import jax
     import jax.numpy as jnp
 
     from harv_jax.aircraft import harv
-    from harv_jax.control.rl import make_rl_controller
-    from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, summarize_controller
-    from harv_jax.policy import load
-    from harv_jax.scenarios import DEFAULT_ALPHA_TARGET_RAD
-
-    ctrl = make_rl_controller(load(policy_path).deterministic)
-    inputs = sample_mc_inputs(jax.random.key(seed), runs, harv(), randomize=randomize)
-    ref = jnp.asarray([DEFAULT_ALPHA_TARGET_RAD, 0.0, 0.0])
-    out, wall = run_mc(ctrl, inputs, ref, 6000, 0.01, 10, 250)
-    s = summarize_controller(out, wall, 6000)
-    return {"recovery_rate": s["recovery_rate"], "t_recover_p50_s": s["recovery_time_s"]["p50"],
-            "control_tv_rad": s["control_tv"]["mean"], "compile_s": wall["compile"],
-            "run_s": wall["run"]}  # fmt: skip
-
-
-def mc_smc(runs: int, seed: int) -> dict:
-    """The SMC's Monte Carlo on the same runs (timed)."""
-    import jax
-    import jax.numpy as jnp
-
-    from harv_jax.aircraft import harv
-    from harv_jax.control.smc import make_smc
     from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, summarize_controller
     from harv_jax.scenarios import DEFAULT_ALPHA_TARGET_RAD
 
     inputs = sample_mc_inputs(jax.random.key(seed), runs, harv())
     ref = jnp.asarray([DEFAULT_ALPHA_TARGET_RAD, 0.0, 0.0])
-    out, wall = run_mc(make_smc(), inputs, ref, 6000, 0.01, 10, 250)
+    out, wall = run_mc(controller, inputs, ref, 6000, 0.01, 10, 250)
     s = summarize_controller(out, wall, 6000)
     return {"recovery_rate": s["recovery_rate"], "t_recover_p50_s": s["recovery_time_s"]["p50"],
             "control_tv_rad": s["control_tv"]["mean"], "compile_s": wall["compile"],
             "run_s": wall["run"]}  # fmt: skip
+
+
+def mc_rl(policy_path: Path, runs: int, seed: int) -> dict:
+    """RL-only Monte Carlo of one policy file."""
+    from harv_jax.control.rl import make_rl_controller
+    from harv_jax.policy import load
+
+    return mc(make_rl_controller(load(policy_path).deterministic), runs, seed)
+
+
+def mc_smc(runs: int, seed: int) -> dict:
+    """The SMC's Monte Carlo on the same runs (timed)."""
+    from harv_jax.control.smc import make_smc
+
+    return mc(make_smc(), runs, seed)
 
 
 def main() -> None:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import signal
 import subprocess
 import sys
@@ -17,6 +16,7 @@ import chex
 import jax
 import numpy as np
 import pytest
+from cli_util import cli_run
 from flax import serialization
 from test_train import CFG, TOY_PARAMS, ToyEnv
 
@@ -203,20 +203,6 @@ def test_watchdog_automatic_limit():
 # ---------------------------------------------------------------------------------------------- CLI flags
 
 
-def _cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
-    from harv_jax import cli
-
-    monkeypatch.setenv("XLA_FLAGS", os.environ.get("XLA_FLAGS", ""))
-    monkeypatch.setattr(sys, "argv", ["harv-jax", "train", *args])
-    code = 0
-    try:
-        cli.main()
-    except SystemExit as e:
-        code = e.code
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -235,7 +221,7 @@ def _cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
     ],
 )
 def test_train_flags_one_line_errors(monkeypatch, capsys, tmp_path, args, message):
-    code, _, err = _cli(monkeypatch, capsys, *[a.replace("{tmp}", str(tmp_path)) for a in args])
+    code, _, err = cli_run(monkeypatch, capsys, "train", *[a.replace("{tmp}", str(tmp_path)) for a in args])
     lines = err.strip().splitlines()
     assert code == 2 and len(lines) == 1 and lines[0].startswith("harv-jax: error:"), err
     assert message in lines[0]
@@ -244,7 +230,7 @@ def test_train_flags_one_line_errors(monkeypatch, capsys, tmp_path, args, messag
 
 def test_train_help_shows_preset_defaults(monkeypatch, capsys):
     monkeypatch.setenv("COLUMNS", "200")
-    code, out, _ = _cli(monkeypatch, capsys, "--help")
+    code, out, _ = cli_run(monkeypatch, capsys, "train", "--help")
     assert code == 0
     text = " ".join(out.split())
     assert "smoke 600,000, paper-partial 10,000,000, paper-full 120,000,000" in text
