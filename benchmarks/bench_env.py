@@ -30,7 +30,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root, for benchmarks.*
 
-from benchmarks.common import machine_name  # noqa: E402
+from benchmarks.common import cpu_model, machine_name  # noqa: E402
 from harv_jax.env import EnvConfig, default_randomization_params, make_env
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
@@ -168,7 +168,12 @@ def main(argv: list[str] | None = None) -> dict:
         "benchmark": "env_steps_per_s",
         "machine": machine,
         "device": {"platform": dev.platform, "kind": dev.device_kind, "count": jax.device_count()},
-        "host": {"cpu_count": os.cpu_count(), "python": platform.python_version(), "node": platform.node()},
+        "host": {
+            "cpu_count": os.cpu_count(),
+            "cpu_model": cpu_model(),
+            "python": platform.python_version(),
+            "node": platform.node(),
+        },
         "jax_version": jax.__version__,
         "dtype": str(jnp.result_type(float)),
         "seed": args.seed,
