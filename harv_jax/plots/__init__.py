@@ -1,0 +1,1 @@
+"""Figures (matplotlib, Agg): time histories, Monte Carlo bands, envelope maps, training curves."""
