@@ -6,7 +6,7 @@ the true altitude and plots show h - h0).
 
 Spin scenario (paper Sec. VI): the aircraft is held in a developed spin with pro-spin controls for
 the first 30 s, then the controller takes over. Entry found by a grid search over entry states and
-full-deflection control combinations (``experiments/smc_results.md``): from V = 300 ft/s,
+full-deflection control combinations (``experiments/smc_tuning/README.md``): from V = 300 ft/s,
 alpha = 0.9 rad, p = r = -0.5 rad/s at 25,000 ft with full aft stick (de = -0.436 rad), full positive
 aileron (da = +0.436) and full positive rudder (dr = +0.524) this model settles in a steep left spin:
 alpha 60-85 deg, r about -1.5 rad/s, gamma about -83 deg, sink about 280 ft/s (about 6,500 ft lost

@@ -127,7 +127,7 @@ def test_nonfinite_commands_are_replaced_and_decimation():
 @pytest.mark.slow
 def test_recovers_at_least_95_percent_of_256_reset_bound_states():
     """The issue's acceptance run: 256 states from the paper's reset bounds (seed 0), alpha_d = 0.349 rad,
-    60 s, nominal model. Measured: 256/256 (experiments/smc_results.md)."""
+    60 s, nominal model. Measured: 256/256 (experiments/smc_tuning/README.md)."""
     from harv_jax.evaluation import evaluate, summarize
     from harv_jax.scenarios import sample_table_states
 

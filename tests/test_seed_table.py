@@ -1,4 +1,4 @@
-"""experiments/seed_table.py: one-seed-per-folder runs are grouped with their preset, means by hand."""
+"""experiments/paper_reproduction/seed_table.py: one-seed folders go with their preset, means by hand."""
 
 from __future__ import annotations
 
@@ -7,7 +7,9 @@ import json
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-_spec = importlib.util.spec_from_file_location("seed_table", REPO / "experiments" / "seed_table.py")
+_spec = importlib.util.spec_from_file_location(
+    "seed_table", REPO / "experiments" / "paper_reproduction" / "seed_table.py"
+)
 seed_table = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(seed_table)
 

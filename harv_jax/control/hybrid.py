@@ -88,12 +88,12 @@ PAPER_E_OFF_RAD = (0.02, 0.02, 0.02)
 #: Default tube, inside the recovery criterion (2, 1, 2 deg = 0.035, 0.017, 0.035 rad) so that drift of the
 #: learned law inside the tube cannot fail the criterion. On 256 Monte Carlo runs with the shipped partial
 #: policy the paper's tube recovered 0.4% with hysteresis (drift to 2.9 deg in mu), this one 100%
-#: (``experiments/hybrid_results.md``).
+#: (``experiments/hybrid_sweep/README.md``).
 DEFAULT_E_ON_RAD = (0.03, 0.015, 0.03)
 DEFAULT_E_OFF_RAD = (0.01, 0.005, 0.01)
 #: Default zeta floor: the SMC keeps 20% authority inside the tube, so its integral removes the learned
 #: law's steady bias (full policy, 256 runs: terminal alpha error 0.76 deg -> 0.017 deg, recovery 99.2% ->
-#: 100%; ``experiments/hybrid_results.md``). Set 0 for the paper's tube.
+#: 100%; ``experiments/hybrid_sweep/README.md``). Set 0 for the paper's tube.
 DEFAULT_ZETA_FLOOR = 0.2
 
 

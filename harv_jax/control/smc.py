@@ -89,14 +89,14 @@ class SMCGains:
 
 
 def default_gains(dtype=None) -> SMCGains:
-    """Default gains, chosen by the two-round study in ``experiments/smc_tuning.py``.
+    """Default gains, chosen by the two-round study in ``experiments/smc_tuning/run.py``.
 
     Starting point (../shared/FINDINGS.md): lambda1 2, lambda2 0.5, K 1, eps 0.2, phi 0.05. Round 1
     (one at a time) showed a plateau of 100% recovery around it and sharp losses for aggressive
     reaching (K 4, eps 0.5, phi 0.02, lambda1 4: limit cycles against the actuator rate limits);
     round 2 combined the softer settings: K 0.5 and phi 0.2 cut control total variation by ~40%
     and the 45-60 deg mu/p_w blend band cut the median recovery time from ~30 s to ~23 s, with
-    100% recovery on nominal and perturbed aircraft (see ``experiments/smc_results.md``).
+    100% recovery on nominal and perturbed aircraft (see ``experiments/smc_tuning/README.md``).
     """
     dtype = jnp.result_type(float) if dtype is None else dtype  # not weakly typed: no retrace on sweeps
 

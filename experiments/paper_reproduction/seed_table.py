@@ -1,7 +1,8 @@
 """Markdown tables from ``seed_eval.py`` JSON files: one row per policy, then mean +- std over seeds.
 
-    python experiments/seed_table.py experiments/results/seed_eval_cpu_partial.json \
-        experiments/results/seed_eval_cpu_full*.json
+    python experiments/paper_reproduction/seed_table.py \
+        experiments/paper_reproduction/results/seed_eval_cpu_partial.json \
+        experiments/paper_reproduction/results/seed_eval_cpu_full*.json
 
 Runs trained one seed per folder (``paper-full-seed1``) are grouped with their preset (``paper-full``); the
 group label is the runs folder's name plus the preset, e.g. ``cpu-2core/paper-full``.

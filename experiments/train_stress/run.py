@@ -2,8 +2,8 @@
 
 Usage::
 
-    nice -n 10 python experiments/stress_train.py [--runs 30] [--old-runs 0] [--steps 4096] [--num-envs 16] \
-        [--timeout-s 200] [--out experiments/results/stress_train_cpu-2core.json]
+    nice -n 10 python experiments/train_stress/run.py [--runs 30] [--old-runs 0] [--steps 4096] \
+        [--num-envs 16] [--timeout-s 200] [--out experiments/train_stress/results/stress_train_cpu-2core.json]
 
 Each run is a subprocess ``python -m harv_jax.cli train --preset smoke --steps S --num-envs N
 --minibatches 4 --seed i --out TMP/run_i``, started the way a user starts it (the CLI sets up XLA itself).
@@ -36,7 +36,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def cpu_model() -> str:
@@ -142,7 +142,7 @@ def main() -> None:
     ap.add_argument("--timeout-s", type=float, default=200.0, help="a run longer than this is a hang")
     ap.add_argument("--watchdog-grace-s", type=float, default=240.0,
                     help="after a hang, wait this long for the watchdog (exit 3) before SIGKILL")  # fmt: skip
-    ap.add_argument("--out", default="experiments/results/stress_train_cpu-2core.json")
+    ap.add_argument("--out", default="experiments/train_stress/results/stress_train_cpu-2core.json")
     args = ap.parse_args()
     for name, low in (("runs", 0), ("old_runs", 0), ("steps", 1), ("num_envs", 1)):
         if getattr(args, name) < low:

@@ -1,8 +1,10 @@
 """RL-only and hybrid Monte Carlo of every seed of a set of training runs (mean +- std over seeds).
 
-    python experiments/seed_eval.py --runs 256 --out experiments/results/seed_eval.json
-    python experiments/seed_eval.py --runs-dir experiments/runs/cpu-2core --presets paper-partial \
-        --out experiments/results/seed_eval_cpu.json
+    python experiments/paper_reproduction/seed_eval.py --runs 256 \
+        --out experiments/paper_reproduction/results/seed_eval.json
+    python experiments/paper_reproduction/seed_eval.py \
+        --runs-dir experiments/paper_reproduction/results/runs/cpu-2core --presets paper-partial \
+        --out experiments/paper_reproduction/results/seed_eval_cpu.json
 
 Policies: RUNS_DIR/{preset}/policy/policy_seed{0,1,...}.npz. Same initial states (paper reset bounds, seed 0,
 nominal aircraft, alpha_d 0.349 rad, 60 s) for every policy and for the SMC-only baseline; the hybrid is the
@@ -26,7 +28,7 @@ from harv_jax.control.smc import make_smc
 from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, summarize_controller
 from harv_jax.policy import load
 
-RUNS_DIR = Path(__file__).resolve().parent / "runs" / "gpu-h100"
+RUNS_DIR = Path(__file__).resolve().parent / "results" / "runs" / "gpu-h100"
 METRICS = {
     "recovery_rate": ("recovery_rate",),
     "alpha_err_deg": ("terminal_error_deg", "alpha", "mean"),

@@ -1,7 +1,7 @@
 """Hybrid zeta schedule and tube radii on the Monte Carlo: recovery, control TV, chatter vs SMC and RL.
 
-    python experiments/hybrid_sweep.py --policy shipped:partial --runs 256 --seed 0 \
-        --out experiments/results/hybrid_sweep_partial.json
+    python experiments/hybrid_sweep/run.py --policy shipped:partial --runs 256 --seed 0 \
+        --out experiments/hybrid_sweep/results/hybrid_sweep_partial.json
 
 Every controller flies the same sampled initial states (paper reset bounds, nominal aircraft, 60 s,
 alpha_d 0.349 rad). Writes one JSON with the summary block of each configuration.

@@ -1,6 +1,7 @@
 """Where a policy's training return comes from: every reward term of one episode, summed per env.
 
-    python experiments/reward_decomposition.py --out experiments/results/reward_decomposition.json
+    python experiments/paper_reproduction/reward_decomposition.py \
+        --out experiments/paper_reproduction/results/reward_decomposition.json
 
 Each policy flies ``--runs`` episodes of the training env (paper reset bounds, ``--steps`` steps, the
 deterministic action) with domain randomization on and off. Per term (reward.RewardTerms): the mean

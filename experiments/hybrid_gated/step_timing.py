@@ -1,6 +1,6 @@
 """Side-by-side cost of one closed-loop step: SMC vs hybrid (continuous, gated), batch of aircraft.
 
-    python experiments/gated_step_timing.py --batch 1000 --steps 200 --repeats 3 --out FILE.json
+    python experiments/hybrid_gated/step_timing.py --batch 1000 --steps 200 --repeats 3 --out FILE.json
 
 Each controller flies ``--steps`` plant steps (controller + actuator + RK4) for ``--batch`` aircraft in one
 jitted, vmapped ``closed_loop``; the best of ``--repeats`` timed calls after compilation is reported per

@@ -1,6 +1,6 @@
-"""Markdown tables of the gated-zeta measurements (``experiments/hybrid_gated_results.md``).
+"""Markdown tables of the gated-zeta measurements (``experiments/hybrid_gated/README.md``).
 
-    python experiments/hybrid_gated_table.py experiments/results/hybrid_gated
+    python experiments/hybrid_gated/table.py experiments/hybrid_gated/results
 
 Reads ``mc_<controller>_<policy>_<condition>_<runs>.json`` (``harv-jax mc`` summaries) and
 ``spin_*.json`` (``harv-jax fly`` metrics) from the folder and prints the tables.
@@ -79,7 +79,7 @@ def spin_rows(folder: Path) -> list[str]:
 
 
 def main() -> None:
-    folder = Path(sys.argv[1] if len(sys.argv) > 1 else "experiments/results/hybrid_gated")
+    folder = Path(sys.argv[1] if len(sys.argv) > 1 else Path(__file__).resolve().parent / "results")
     print("\n".join(mc_rows(folder)))
     print()
     print("\n".join(spin_rows(folder)))

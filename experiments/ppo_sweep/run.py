@@ -4,10 +4,10 @@ Usage::
 
     # train each variant (on top of a preset) with S seeds in one graph, then evaluate; variants
     # combine with "+" (e.g. stagger+linear-lr+seed1)
-    python experiments/ppo_sweep.py sweep --preset smoke --seeds 2 --variants base,lr3e-4,epochs10 \
-        [--steps N] [--out experiments/results]
+    python experiments/ppo_sweep/run.py sweep --preset smoke --seeds 2 --variants base,lr3e-4,epochs10 \
+        [--steps N] [--out experiments/ppo_sweep/results]
     # evaluate a finished `harv-jax train` run: initial vs trained deterministic policy, every seed
-    python experiments/ppo_sweep.py evaluate RUN_DIR [--eval-envs 256]
+    python experiments/ppo_sweep/run.py evaluate RUN_DIR [--eval-envs 256]
 
 Evaluation: each seed's initial parameters (re-created from the run's seed) and its trained parameters fly
 the same ``--eval-envs`` initial states (common random numbers: one evaluation key) for one episode of the
@@ -16,7 +16,7 @@ over seeds: episode return, ||omega|| at the episode end, fraction terminated (l
 with |e_alpha| < 2 deg at the end, fraction meeting the full recovery criterion at the end (instantaneous,
 no 10 s hold); over the episodes that were not terminated, ||omega|| and |e_alpha| at the end and their
 averages over the episode (``mean/...``: how fast the rates are damped, not only where they end). Results
-are JSON in ``--out``; the markdown in ``experiments/ppo_sweep_results.md`` is written by hand from them.
+are JSON in ``--out``; the markdown in ``experiments/ppo_sweep/README.md`` is written by hand from them.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from typing import Any
 import jax
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from harv_jax.commands.train import make_harv_env  # noqa: E402
 from harv_jax.ppo import checkpoint  # noqa: E402

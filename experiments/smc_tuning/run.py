@@ -1,4 +1,4 @@
-"""Short SMC gain study and the 256-run / spin evaluation behind ``experiments/smc_results.md``.
+"""Short SMC gain study and the 256-run / spin evaluation behind ``experiments/smc_tuning/README.md``.
 
 Parts (``--part``):
   tune     one-at-a-time sweep of every gain around the defaults on a *tuning* set of reset-bound
@@ -9,8 +9,8 @@ Parts (``--part``):
            outcome counts, recovery-time distribution, failures and envelope departures.
   spin     open-loop 30 s spin (figure) and the spin scenario (30 s spin, then 60 s of SMC).
 
-Run: ``python experiments/smc_tuning.py --part all`` (CPU: a few minutes on 2 cores).
-Writes ``experiments/smc_tuning_results.json`` and PNGs in ``experiments/figures/``.
+Run: ``python experiments/smc_tuning/run.py --part all`` (CPU: a few minutes on 2 cores).
+Writes ``smc_tuning_results.json`` and the PNGs in ``experiments/smc_tuning/results/``.
 """
 
 from __future__ import annotations
@@ -41,8 +41,8 @@ from harv_jax.scenarios import (
 from harv_jax.units import RAD_PER_DEG
 
 HERE = Path(__file__).resolve().parent
-FIG_DIR = HERE / "figures"
-RESULTS = HERE / "smc_tuning_results.json"
+FIG_DIR = HERE / "results"
+RESULTS = HERE / "results" / "smc_tuning_results.json"
 DT_S = 0.01
 N_STEPS = 6000  # 60 s
 REFERENCE = (DEFAULT_ALPHA_TARGET_RAD, 0.0, 0.0)
