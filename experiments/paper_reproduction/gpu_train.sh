@@ -10,6 +10,7 @@ for preset in paper-partial paper-full; do
   tail -n 25 "$OUT/$preset.log"
 done
 # results come back as files of at most 16 MiB: runs without checkpoints, and the last checkpoints apart
+# (train_last_ckpts.tgz: training state, not committed; a run that needs resuming is re-run)
 tar czf "$OUT/train_runs.tgz" -C "$OUT" --exclude='ckpt_*' paper-partial paper-full paper-partial.log paper-full.log
 last_ckpts=$(cd "$OUT" && for d in paper-partial paper-full; do ls "$d"/checkpoints/ckpt_*.msgpack | tail -n 1; done)
 tar czf "$OUT/train_last_ckpts.tgz" -C "$OUT" $last_ckpts
