@@ -138,9 +138,10 @@ def build_ours(cfg: Any, env_table: dict[str, Any], num_envs: int, updates: int)
     """Build and compile our trainer for one seed at ``num_envs``; the pieces for :func:`time_ours`."""
     import jax
 
-    from harv_jax.commands.train import make_harv_env
+    from harv_jax.env.episode_metrics import harv_episode_metrics
     from harv_jax.ppo import config as ppo_config
-    from harv_jax.ppo.train import harv_episode_metrics, make_train, seed_keys
+    from harv_jax.ppo.train import make_train, seed_keys
+    from harv_jax.training.environment import make_harv_env
 
     cfg = cfg.replace(num_envs=num_envs, num_seeds=1, num_periods=1,
                       total_steps=updates * num_envs * cfg.unroll)  # fmt: skip
@@ -201,8 +202,9 @@ def main() -> None:
 
     from benchmarks.common import cpu_cores, machine_name, write_json
     from harv_jax.ppo import config as ppo_config
+    from harv_jax.training.presets import load_preset
 
-    base, env_table = ppo_config.load_preset(args.preset)
+    base, env_table = load_preset(args.preset)
     sizes = [int(s) for s in args.num_envs.split(",")] if args.num_envs else [base.num_envs]
     machine = machine_name(args.machine)
     load_start = _load()

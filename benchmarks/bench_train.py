@@ -40,9 +40,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.common import cpu_cores, load_average_1min, machine_name, write_json  # noqa: E402
 from harv_jax.env import EnvConfig, default_params, make_env  # noqa: E402
+from harv_jax.env.episode_metrics import harv_episode_metrics  # noqa: E402
 from harv_jax.ppo import config as ppo_config  # noqa: E402
 from harv_jax.ppo.config import PPOConfig  # noqa: E402
-from harv_jax.ppo.train import harv_episode_metrics, make_train, seed_keys  # noqa: E402
+from harv_jax.ppo.train import make_train, seed_keys  # noqa: E402
 
 HIDDEN = (256, 128)
 OBS, ACT = 11, 3

@@ -371,6 +371,7 @@ def test_dynamics_reject_wrong_shapes_but_jit_and_vmap_work():
 def test_seed_and_train_guards_raise_before_anything_is_built():
     from harv_jax.guards import check_closed_loop_batch, check_seed, check_simulate
     from harv_jax.ppo import config as ppo_config
+    from harv_jax.training.presets import load_preset
 
     assert check_seed(0) == 0 and check_seed(2**31 - 1) == 2**31 - 1
     for bad in (-1, 2**31, 10**20):
@@ -385,7 +386,7 @@ def test_seed_and_train_guards_raise_before_anything_is_built():
     with pytest.raises(ValueError, match="--num-envs"):
         ppo_config.from_dict({"num_envs": 10**8})
     for name in ("smoke", "paper-partial", "paper-full"):
-        ppo_config.load_preset(name)  # the shipped presets pass the guards
+        load_preset(name)  # the shipped presets pass the guards
 
 
 def test_version(monkeypatch, capsys):

@@ -68,10 +68,10 @@ def test_paper_reward_bit_for_bit():
 
 
 def test_paper_presets_have_no_reward_table():
-    from harv_jax.ppo import config as ppo_config
+    from harv_jax.training.presets import load_preset
 
     for name in ("paper-partial", "paper-full"):
-        _, env = ppo_config.load_preset(name)
+        _, env = load_preset(name)
         assert "reward" not in env and "spin" not in env, name
 
 
@@ -143,7 +143,7 @@ def test_total_adds_our_terms():
     ],
 )
 def test_bad_tables_one_line(table, message):
-    from harv_jax.commands.train import make_harv_env
+    from harv_jax.training.environment import make_harv_env
 
     with pytest.raises(UsageError) as e:
         make_harv_env({"episode_steps": 100, "domain_randomization": False, **table})
@@ -179,9 +179,9 @@ def test_cli_bad_reward_table_exit_2(monkeypatch, capsys, tmp_path):
     """A [spin] mix out of range in a preset: one line naming the key and the range, exit 2, no run folder."""
     from cli_util import cli_run
 
-    from harv_jax.ppo import config as ppo_config
+    from harv_jax.training.presets import preset_path
 
-    text = ppo_config.preset_path("smoke").read_text() + "\n[spin]\nreset_prob = 1.5\n"
+    text = preset_path("smoke").read_text() + "\n[spin]\nreset_prob = 1.5\n"
     preset = tmp_path / "bad.toml"
     preset.write_text(text)
     code, _, err = cli_run(monkeypatch, capsys, "train", "--preset", preset, "--out", tmp_path / "run")

@@ -85,7 +85,7 @@ def test_period_hook_adds_metrics_and_stops(tmp_path):
     from test_train import CFG, TOY_PARAMS, ToyEnv
 
     from harv_jax.ppo import checkpoint
-    from harv_jax.ppo.train import run_training
+    from harv_jax.ppo.runner import run_training
 
     calls = []
 

@@ -19,8 +19,11 @@ from flax import struct
 from harv_jax.errors import UsageError
 from harv_jax.ppo import checkpoint
 from harv_jax.ppo import config as ppo_config
+from harv_jax.ppo.acting import make_evaluate
 from harv_jax.ppo.config import PPOConfig
-from harv_jax.ppo.train import make_evaluate, make_train, run_training, seed_keys, warm_start
+from harv_jax.ppo.runner import run_training, warm_start
+from harv_jax.ppo.train import make_train, seed_keys
+from harv_jax.training import presets
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -274,15 +277,15 @@ def test_policy_export_roundtrip(trainer, full_run, tmp_path):
 
 def test_presets_load_and_bad_values():
     for name in ("smoke", "paper-partial", "paper-full"):
-        cfg, env = ppo_config.load_preset(name)
+        cfg, env = presets.load_preset(name)
         assert cfg.hidden_sizes == (256, 128) and cfg.gamma == 0.99
         assert "episode_steps" in env
-    _, env_full = ppo_config.load_preset("paper-full")
+    _, env_full = presets.load_preset("paper-full")
     assert env_full["domain_randomization"] is True
-    assert ppo_config.load_preset("paper-full")[0].total_steps == 120_000_000
-    assert ppo_config.load_preset("paper-partial")[0].total_steps == 10_000_000
+    assert presets.load_preset("paper-full")[0].total_steps == 120_000_000
+    assert presets.load_preset("paper-partial")[0].total_steps == 10_000_000
     with pytest.raises(UsageError, match="unknown preset 'nope'"):
-        ppo_config.load_preset("nope")
+        presets.load_preset("nope")
     with pytest.raises(UsageError, match="--steps -5"):
         CFG.replace(total_steps=-5)
     with pytest.raises(UsageError, match="--minibatches 7 must divide"):
@@ -295,27 +298,15 @@ def test_presets_load_and_bad_values():
         ppo_config.check_devices(CFG.replace(num_envs=3, minibatches=1), 2)
 
 
-def test_shipped_presets_equal_experiments_presets():
-    """The package-data copy (what a non-editable install loads) is byte-identical to experiments/presets."""
-    repo = sorted(p.name for p in (REPO / "experiments" / "presets").glob("*.toml"))
-    shipped = sorted(p.name for p in (REPO / "harv_jax" / "ppo" / "presets").glob("*.toml"))
-    assert repo == shipped and {"smoke.toml", "paper-partial.toml", "paper-full.toml"} <= set(repo)
-    for name in repo:
-        a = (REPO / "experiments" / "presets" / name).read_bytes()
-        b = (REPO / "harv_jax" / "ppo" / "presets" / name).read_bytes()
-        assert a == b, f"harv_jax/ppo/presets/{name} differs from experiments/presets/{name}: copy it over"
-
-
-def test_presets_load_from_package_data_without_checkout(monkeypatch, tmp_path):
-    want = ppo_config.load_preset("smoke")
-    monkeypatch.setattr(ppo_config, "PRESET_DIR", tmp_path / "no-checkout")  # as in a non-editable install
-    assert ppo_config.available_presets() == ["paper-full", "paper-partial", "recovery", "smoke"]
-    assert str(ppo_config.preset_path("smoke")) == str(ppo_config.PACKAGE_PRESET_DIR / "smoke.toml")
-    assert ppo_config.load_preset("smoke") == want
+def test_presets_load_from_package_data():
+    """The presets live once, as package data (what a non-editable install loads too)."""
+    assert presets.available_presets() == ["paper-full", "paper-partial", "recovery", "smoke"]
+    assert str(presets.preset_path("smoke")) == str(presets.PRESET_DIR / "smoke.toml")
+    assert not (REPO / "experiments" / "presets").exists()
     with pytest.raises(
         UsageError, match="unknown preset .nope.; available: paper-full, paper-partial, recovery, smoke"
     ):
-        ppo_config.load_preset("nope")
+        presets.load_preset("nope")
 
 
 def _cli(monkeypatch, capsys, *args: str) -> tuple[int, str]:
@@ -355,9 +346,9 @@ def test_cli_bad_flags_one_line(monkeypatch, capsys, tmp_path, args, message):
 
 
 def test_cli_num_envs_not_divisible_by_devices(monkeypatch, capsys, tmp_path):
-    from harv_jax.ppo import train as ppo_train
+    from harv_jax.ppo import sharding
 
-    monkeypatch.setattr(ppo_train, "default_devices", lambda: ["d0", "d1"])
+    monkeypatch.setattr(sharding, "default_devices", lambda: ["d0", "d1"])
     code, err = _cli(
         monkeypatch, capsys, "--num-envs", "3", "--minibatches", "1", "--out", str(tmp_path / "o")
     )
@@ -421,7 +412,7 @@ def test_cli_smoke_on_harv_env(tmp_path):
                  "policy/policy_seed1.npz"):  # fmt: skip
         assert (out / name).is_file(), name
     rows = (out / "metrics.csv").read_text().strip().splitlines()
-    assert len(rows) == 1 + ppo_config.num_periods(ppo_config.load_preset("smoke")[0].replace(
+    assert len(rows) == 1 + ppo_config.num_periods(presets.load_preset("smoke")[0].replace(
         total_steps=2048, num_envs=16, minibatches=4))  # fmt: skip
     r = subprocess.run(base + ["--resume", str(out)], capture_output=True, text=True, cwd=REPO, timeout=900)
     assert r.returncode == 0, r.stderr[-3000:]

@@ -20,12 +20,13 @@ from cli_util import cli_run
 from flax import serialization
 from test_train import CFG, TOY_PARAMS, ToyEnv
 
-from harv_jax.commands.train import resume_plan
 from harv_jax.errors import UsageError
 from harv_jax.ppo import checkpoint
 from harv_jax.ppo import config as ppo_config
-from harv_jax.ppo.train import make_train, run_training
+from harv_jax.ppo.runner import run_training
+from harv_jax.ppo.train import make_train
 from harv_jax.ppo.watchdog import Watchdog
+from harv_jax.training.resume import resume_plan
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -33,16 +33,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from harv_jax.commands.train import make_harv_env  # noqa: E402
+from harv_jax.env.episode_metrics import harv_episode_metrics  # noqa: E402
 from harv_jax.ppo import checkpoint  # noqa: E402
 from harv_jax.ppo import config as ppo_config  # noqa: E402
-from harv_jax.ppo.train import (  # noqa: E402
-    harv_episode_metrics,
-    make_evaluate,
-    make_train,
-    run_training,
-    seed_keys,
-)
+from harv_jax.ppo.acting import make_evaluate  # noqa: E402
+from harv_jax.ppo.runner import run_training  # noqa: E402
+from harv_jax.ppo.train import make_train, seed_keys  # noqa: E402
+from harv_jax.training.environment import make_harv_env  # noqa: E402
+from harv_jax.training.presets import load_preset  # noqa: E402
 
 #: Variants: changes on top of the preset's [ppo] table.
 VARIANTS: dict[str, dict[str, Any]] = {
@@ -142,7 +140,7 @@ def eval_env(env_table: dict[str, Any], episode_steps: int | None, eval_steps: i
 
 
 def cmd_sweep(args: argparse.Namespace) -> None:
-    base, env_table = ppo_config.load_preset(args.preset)
+    base, env_table = load_preset(args.preset)
     if args.episode_steps:
         env_table = dict(env_table, episode_steps=args.episode_steps)
     env, env_params = make_harv_env(env_table)

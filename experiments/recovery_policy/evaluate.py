@@ -71,7 +71,7 @@ def spin(ctrl) -> dict:
 def env_episodes(policy, n: int, seed: int, randomize: bool = True) -> dict:
     """Deterministic policy over n 60 s episodes of the env with the full randomization on (or off)."""
     from harv_jax.env import EnvConfig, default_params, make_env
-    from harv_jax.ppo.train import harv_episode_metrics
+    from harv_jax.env.episode_metrics import harv_episode_metrics
 
     env = make_env(EnvConfig(episode_steps=N_STEPS, domain_randomization=randomize))
     params = default_params(env.config)

@@ -29,7 +29,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
-PRESET = ROOT / "experiments" / "presets" / "recovery.toml"
+PRESET = ROOT / "harv_jax" / "training" / "presets" / "recovery.toml"
 
 #: variant -> (description, function of the preset dict that returns the variant's preset dict)
 VARIANTS = {
@@ -179,14 +179,13 @@ def train_in_process(preset: Path, seeds: int, seed: int, run_dir: Path) -> None
     """The same training through the Python API (no progress display, TensorBoard or watchdog threads)."""
     import jax
 
-    from harv_jax.commands.train import (
-        build_config,
-        export_policies,
-        make_eval_hook,
-        make_harv_env,
-        write_metrics_csv,
-    )
-    from harv_jax.ppo.train import harv_episode_metrics, make_train, run_training
+    from harv_jax.env.episode_metrics import harv_episode_metrics
+    from harv_jax.ppo.runner import run_training
+    from harv_jax.ppo.train import make_train
+    from harv_jax.training.environment import make_harv_env
+    from harv_jax.training.eval_hook import make_eval_hook
+    from harv_jax.training.outputs import export_policies, write_metrics_csv
+    from harv_jax.training.presets import build_config
 
     cfg, env_table = build_config(str(preset), {"num_seeds": seeds, "seed": seed})
     env, env_params = make_harv_env(env_table)

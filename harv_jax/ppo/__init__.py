@@ -1,5 +1,9 @@
-"""PPO for the recovery env, in Brax's style on current jax: networks, losses, trainer, checkpoints.
+"""Generic PPO in Brax's manner on current jax: it knows gymnax-style envs, nothing of the aircraft or task.
 
-Import the pieces from their modules (``harv_jax.ppo.train.make_train``, ``harv_jax.ppo.config.PPOConfig``,
-``harv_jax.ppo.losses.compute_gae`` ...); this package does not import jax-heavy modules eagerly.
+Modules: ``config`` (PPOConfig, validation, a generic TOML loader), ``networks``, ``losses``, ``normalize``,
+``train`` (the compiled training step: ``make_train``, ``TrainingState``), ``acting`` (the env interface,
+episode metrics, ``make_evaluate``), ``runner`` (the host driver: periods, checkpoints, logging, resume,
+``run_training``), ``sharding`` (device mesh and placement), ``checkpoint``, ``watchdog``. Task metrics come
+in only through ``episode_metrics_fn``; the HARV recipe that uses this is ``harv_jax.training``. Import the
+pieces from their modules; this package does not import jax-heavy modules eagerly.
 """

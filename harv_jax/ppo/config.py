@@ -1,20 +1,15 @@
-"""PPO configuration: a frozen dataclass, presets from ``experiments/presets/*.toml``, validation.
+"""PPO configuration: a frozen dataclass, validation, derived sizes, and a generic TOML loader.
 
-A preset file has a ``[ppo]`` table (fields of :class:`PPOConfig`), an optional ``[env]`` table that is
-passed to the environment's config, and optional ``[reward]``, ``[randomization]``, ``[spin]`` and
-``[eval]`` tables, returned nested inside the env settings (``harv_jax.env.settings`` validates them). The
-presets are edited in ``experiments/presets`` and shipped as package data in ``harv_jax/ppo/presets`` (an
-identical copy, checked by a test), so that a non-editable install finds them too: a name is looked up in
-the checkout's ``experiments/presets`` first (when the package runs from a source tree) and then in the
-package data. Every bad value raises :class:`harv_jax.errors.UsageError` with a one-line message naming the
-value and what is allowed. Derived quantities (updates, periods, batch sizes) are computed by functions and
-never written back into the config.
+A config file (:func:`load_file`) has a ``[ppo]`` table (fields of :class:`PPOConfig`) and whatever other
+tables its caller accepts (the HARV recipes in ``harv_jax.training.presets`` add ``[env]``, ``[reward]``
+...). Every bad value raises :class:`harv_jax.errors.UsageError` with a one-line message naming the value
+and what is allowed. Derived quantities (updates, periods, batch sizes) are computed by functions and never
+written back into the config.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import importlib.resources
 import math
 import tomllib
 from dataclasses import dataclass
@@ -25,10 +20,6 @@ from typing import Any
 from harv_jax.errors import UsageError
 from harv_jax.guards import check_seed, check_train
 
-#: Folder of the preset files in a source checkout (absent in a non-editable install).
-PRESET_DIR = Path(__file__).resolve().parents[2] / "experiments" / "presets"
-#: The copy shipped as package data (``pyproject.toml`` [tool.setuptools.package-data]).
-PACKAGE_PRESET_DIR: Traversable = importlib.resources.files("harv_jax.ppo") / "presets"
 LR_SCHEDULES = ("constant", "linear")
 
 
@@ -155,56 +146,29 @@ def to_dict(cfg: PPOConfig) -> dict[str, Any]:
     return d
 
 
-def _preset_dirs() -> list[Path | Traversable]:
-    """Where presets are looked up by name, in order: the checkout's folder (if any), the package data."""
-    return [d for d in (PRESET_DIR, PACKAGE_PRESET_DIR) if d.is_dir()]
+def load_file(path: Path | Traversable, tables: tuple[str, ...] = ()) -> tuple[PPOConfig, dict[str, Any]]:
+    """Read a TOML config file: its ``[ppo]`` table as a validated config, and its other tables.
 
-
-def _preset_files(folder: Path | Traversable) -> dict[str, Path | Traversable]:
-    return {f.name[: -len(".toml")]: f for f in folder.iterdir() if f.name.endswith(".toml") and f.is_file()}
-
-
-def available_presets() -> list[str]:
-    """Names of the presets (``experiments/presets`` in a checkout, and the package's copy)."""
-    return sorted({name for d in _preset_dirs() for name in _preset_files(d)})
-
-
-def preset_path(name: str) -> Path | Traversable | None:
-    """The file of preset ``name`` (first of ``experiments/presets``, package data), or None."""
-    for d in _preset_dirs():
-        f = _preset_files(d).get(name)
-        if f is not None:
-            return f
-    return None
-
-
-def load_preset(name: str) -> tuple[PPOConfig, dict[str, Any]]:
-    """Load a preset by name (``smoke``, ``paper-partial`` ...) or by path to a ``.toml`` file.
+    Args:
+        path: the ``.toml`` file (a path or a package-data resource).
+        tables: names of the other tables the caller accepts (besides ``ppo`` and ``description``).
 
     Returns:
-        (validated PPOConfig, env overrides dict from the ``[env]`` table).
+        (validated PPOConfig, dict of the other top-level entries by name).
+
+    Raises:
+        UsageError: the file is not valid TOML, has a table not in ``tables``, or a bad ``[ppo]`` value.
     """
-    path = Path(name) if name.endswith(".toml") else preset_path(name)
-    if path is None or not path.is_file():
-        allowed = ", ".join(available_presets()) or "(none found)"
-        raise UsageError(f"unknown preset {name!r}; available: {allowed}")
     try:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as e:
         raise UsageError(f"preset {str(path)!r} is not valid TOML: {e}") from None
-    nested = ("reward", "randomization", "spin", "eval")
-    unknown = set(data) - {"ppo", "env", "description", *nested}
+    unknown = set(data) - {"ppo", "description", *tables}
     if unknown:
-        raise UsageError(
-            f"preset {str(path)!r} has unknown tables {sorted(unknown)}; "
-            f"allowed: ppo, env, {', '.join(nested)}"
-        )
+        allowed = ", ".join(("ppo", *tables))
+        raise UsageError(f"preset {str(path)!r} has unknown tables {sorted(unknown)}; allowed: {allowed}")
     cfg = from_dict(data.get("ppo", {}), source=f"preset {path.name}")
-    env = dict(data.get("env", {}))
-    for name in nested:  # stored inside the env settings (checkpoints keep them for --resume)
-        if name in data:
-            env[name] = dict(data[name])
-    return cfg, env
+    return cfg, {k: v for k, v in data.items() if k != "ppo"}
 
 
 # ------------------------------------------------------------------------------------------ derived values

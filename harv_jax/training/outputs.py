@@ -1,0 +1,143 @@
+"""What a training run leaves in its folder: metrics.csv, policy/, spin_bank.npz and summary.json.
+
+``metrics.csv``: one row per period, mean, std and per-seed value of every metric. ``policy/``:
+``policy_seed<i>.npz`` for every seed, ``policy.npz`` and ``policy.stablehlo`` of the best seed by final mean
+return. ``spin_bank.npz``: the spin-reset states (if spin resets are on). ``summary.json``: see
+:func:`run_summary`.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+
+from harv_jax import policy as policy_api
+from harv_jax.env import EnvParams, settings
+from harv_jax.policy import Policy, make_policy, select_seed
+from harv_jax.ppo import config as ppo_config
+from harv_jax.ppo.config import PPOConfig
+from harv_jax.ppo.train import Trainer, TrainingState
+
+#: Episode metrics summarised in ``summary.json`` (first and last period).
+SUMMARY_METRICS = ("episode_return", "episode/recovered", "episode/final_omega_radps", "episode/terminated")
+
+
+def write_metrics_csv(path: Path, history: list[dict[str, Any]]) -> None:
+    """Rewrite ``metrics.csv`` from the whole history (so a resumed run has one row per period)."""
+    if not history:
+        return
+    scalar = ("period", "env_steps", "wall_s", "period_s")
+    names = list(dict.fromkeys(k for row in history for k in row if k not in scalar))  # eval rows add keys
+    n_seeds = int(np.asarray(history[0][names[0]]).size) if names else 1
+    header = list(scalar)
+    for k in names:
+        header += [k, f"{k}_std"] + [f"{k}/seed{i}" for i in range(n_seeds)]
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        for row in history:
+            out = [row[k] for k in scalar]
+            for k in names:
+                v = np.asarray(row.get(k, np.full(n_seeds, np.nan)), np.float64).reshape(-1)
+                finite = v[np.isfinite(v)]
+                out += [finite.mean() if finite.size else math.nan, finite.std() if finite.size else math.nan]
+                out += list(v)
+            w.writerow([f"{x:.6g}" if isinstance(x, float | np.floating) else x for x in out])
+    tmp.replace(path)
+
+
+def _nanstat(fn: Callable[[np.ndarray], Any], v: np.ndarray) -> float:
+    """``fn`` over the finite entries of ``v``; NaN (without a warning) if there are none."""
+    v = v[np.isfinite(v)]
+    return float(fn(v)) if v.size else math.nan
+
+
+def export_seed_policies(
+    pdir: Path, state: TrainingState, trainer: Trainer, cfg: PPOConfig, env_steps: int
+) -> list[Policy]:
+    """Write ``pdir/policy_seed<i>.npz`` for every seed; returns the policies."""
+    params, normalizer = jax.device_get((state.params, state.normalizer))
+    pols = []
+    for s in range(cfg.num_seeds):
+        meta = {"seed": s, "config": ppo_config.to_dict(cfg), "env_steps": env_steps,
+                "normalize_observations": cfg.normalize_observations}  # fmt: skip
+        pol = make_policy(select_seed(params, s), select_seed(normalizer, s), trainer.networks,
+                          cfg.normalize_observations, meta)  # fmt: skip
+        policy_api.export_npz(pdir / f"policy_seed{s}.npz", pol)
+        pols.append(pol)
+    return pols
+
+
+def export_policies(
+    out_dir: Path, state: TrainingState, trainer: Trainer, cfg: PPOConfig, history: list[dict[str, Any]]
+) -> int:
+    """Write ``policy/policy_seed<i>.npz`` per seed and ``policy.npz``/``policy.stablehlo`` of the best.
+
+    The best seed has the highest mean episode return in the last period; returns its index.
+    """
+    last = np.asarray(history[-1]["episode_return"], np.float64).reshape(-1) if history else np.zeros(1)
+    best = int(np.nanargmax(np.where(np.isfinite(last), last, -np.inf))) if np.any(np.isfinite(last)) else 0
+    pdir = out_dir / "policy"
+    pols = export_seed_policies(pdir, state, trainer, cfg, history[-1]["env_steps"] if history else 0)
+    policy_api.export_npz(pdir / "policy.npz", pols[best])
+    if policy_api.export_available():  # jax.export serialization needs flatbuffers
+        policy_api.export_stablehlo(pdir / "policy.stablehlo", pols[best])
+    return best
+
+
+def save_spin_bank(out_dir: Path, env_table: dict[str, Any], env_params: EnvParams) -> None:
+    """``spin_bank.npz`` in the run folder: the bank's states, deflections and provenance (if spin resets)."""
+    flat, nested = settings.split_tables(env_table)
+    if settings.spin_settings(nested["spin"]).reset_prob <= 0:
+        return
+    prov = settings.bank_provenance(settings.env_config(flat), nested)
+    np.savez(
+        out_dir / "spin_bank.npz",
+        x_wind=np.asarray(env_params.spin_states),
+        delta_rad=np.asarray(env_params.spin_delta_rad),
+        provenance=np.asarray(json.dumps(prov)),
+    )
+
+
+def run_summary(
+    out_dir: Path, history: list[dict[str, Any]], best_seed: int, target_recovery: float | None
+) -> dict[str, Any]:
+    """The run's ``summary.json`` content: periods, best seed, last evaluation, first/last episode metrics.
+
+    ``eval``: the ``eval/`` entries (per seed), env steps and wall time of the last evaluated period;
+    ``target_reached_at_env_steps``: with ``target_recovery``, the first evaluation where every seed recovered
+    at least that fraction (None if none did); ``episode_return``, ``episode/recovered``,
+    ``episode/final_omega_radps``, ``episode/terminated``: mean over seeds in the first and last period and
+    the std over seeds in the last.
+    """
+    summary: dict[str, Any] = {"out": str(out_dir), "periods": len(history), "best_seed": best_seed,
+                               "env_steps_per_seed": history[-1]["env_steps"] if history else 0}  # fmt: skip
+    evals = [row for row in history if "eval/recovered" in row]
+    if evals:
+        summary["eval"] = {k: np.asarray(v, np.float64).reshape(-1).tolist() for k, v in evals[-1].items()
+                           if k.startswith("eval/")}  # fmt: skip
+        summary["eval"]["env_steps"] = evals[-1]["env_steps"]
+        summary["eval"]["wall_s"] = evals[-1]["wall_s"]
+        if target_recovery is not None:
+            reached = [r for r in evals if np.all(np.asarray(r["eval/recovered"]) >= target_recovery)]
+            summary["target_reached_at_env_steps"] = reached[0]["env_steps"] if reached else None
+    for k in SUMMARY_METRICS:
+        if history and k in history[-1]:
+            first = np.asarray(history[0][k], np.float64).reshape(-1)
+            last = np.asarray(history[-1][k], np.float64).reshape(-1)
+            summary[k] = {"first_mean": _nanstat(np.nanmean, first), "last_mean": _nanstat(np.nanmean, last),
+                          "last_std": _nanstat(np.nanstd, last)}  # fmt: skip
+    return summary
+
+
+def write_summary(path: Path, summary: dict[str, Any]) -> None:
+    """``summary.json`` (indented JSON)."""
+    path.write_text(json.dumps(summary, indent=2))

@@ -1,0 +1,72 @@
+"""The HARV training recipes (presets), shipped as package data in ``harv_jax/training/presets/*.toml``.
+
+A preset file has a ``[ppo]`` table (fields of :class:`~harv_jax.ppo.config.PPOConfig`), an optional
+``[env]`` table that is passed to the environment's config, and optional ``[reward]``, ``[randomization]``,
+``[spin]`` and ``[eval]`` tables, returned nested inside the env settings (``harv_jax.env.settings``
+validates them). A preset is named by its file name without ``.toml`` (``smoke``, ``paper-partial``,
+``paper-full``, ``recovery``) or given as a path to a ``.toml`` file.
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+from importlib.resources.abc import Traversable
+from pathlib import Path
+from typing import Any
+
+from harv_jax.errors import UsageError
+from harv_jax.ppo import config as ppo_config
+from harv_jax.ppo.config import PPOConfig
+
+#: Folder of the preset files (package data: ``pyproject.toml`` [tool.setuptools.package-data]).
+PRESET_DIR: Traversable = importlib.resources.files("harv_jax.training") / "presets"
+#: Tables of a preset besides ``[ppo]``; all but ``env`` are stored nested inside the env settings.
+NESTED_TABLES = ("reward", "randomization", "spin", "eval")
+#: Name of the preset used when none is given.
+DEFAULT_PRESET = "smoke"
+
+
+def _preset_files() -> dict[str, Traversable]:
+    if not PRESET_DIR.is_dir():
+        return {}
+    return {
+        f.name[: -len(".toml")]: f for f in PRESET_DIR.iterdir() if f.name.endswith(".toml") and f.is_file()
+    }
+
+
+def available_presets() -> list[str]:
+    """Names of the shipped presets."""
+    return sorted(_preset_files())
+
+
+def preset_path(name: str) -> Traversable | None:
+    """The file of preset ``name``, or None."""
+    return _preset_files().get(name)
+
+
+def load_preset(name: str) -> tuple[PPOConfig, dict[str, Any]]:
+    """Load a preset by name (``smoke``, ``paper-partial`` ...) or by path to a ``.toml`` file.
+
+    Returns:
+        (validated PPOConfig, env settings: the ``[env]`` table with the nested tables inside).
+
+    Raises:
+        UsageError: unknown name, missing file, bad TOML, unknown table or bad ``[ppo]`` value.
+    """
+    path = Path(name) if name.endswith(".toml") else preset_path(name)
+    if path is None or not path.is_file():
+        allowed = ", ".join(available_presets()) or "(none found)"
+        raise UsageError(f"unknown preset {name!r}; available: {allowed}")
+    cfg, tables = ppo_config.load_file(path, ("env", *NESTED_TABLES))
+    env = dict(tables.get("env", {}))
+    for table in NESTED_TABLES:  # stored inside the env settings (checkpoints keep them for --resume)
+        if table in tables:
+            env[table] = dict(tables[table])
+    return cfg, env
+
+
+def build_config(preset: str, overrides: dict[str, Any]) -> tuple[PPOConfig, dict[str, Any]]:
+    """Preset + command-line overrides (None: not given) -> (validated PPOConfig, env settings)."""
+    cfg, env_table = load_preset(preset)
+    changes = {k: v for k, v in overrides.items() if v is not None}
+    return ppo_config.from_dict(changes, base=cfg, source="command line"), env_table

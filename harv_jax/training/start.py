@@ -1,0 +1,91 @@
+"""The pieces of a training run before its first period: env, trainer, initial policy, run record.
+
+:func:`build_training` makes the recovery env from the env settings and the generic trainer with the HARV
+episode metrics (``harv_jax.env.episode_metrics``); :func:`write_run_record` writes the run folder's
+``config.json`` (what ``--resume`` restarts from when no checkpoint was written) and its spin bank.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import jax
+
+from harv_jax.env import Env, EnvParams
+from harv_jax.env.episode_metrics import harv_episode_metrics
+from harv_jax.errors import UsageError
+from harv_jax.policy import resolve_policy
+from harv_jax.ppo import config as ppo_config
+from harv_jax.ppo import normalize as obs_norm
+from harv_jax.ppo.config import PPOConfig
+from harv_jax.ppo.networks import PPOParams
+from harv_jax.ppo.runner import check_init_policy
+from harv_jax.ppo.train import Trainer, make_train
+from harv_jax.training.environment import make_harv_env
+from harv_jax.training.outputs import save_spin_bank
+
+
+class TrainingSetup(NamedTuple):
+    """What :func:`build_training` returns.
+
+    Attributes:
+        env: the recovery env.
+        env_params: its traced parameters.
+        trainer: ``make_train`` of env and config, with the HARV episode metrics.
+        init_policy: (params, normalizer) every seed starts from, or None (random initialization).
+    """
+
+    env: Env
+    env_params: EnvParams
+    trainer: Trainer
+    init_policy: tuple[PPOParams, obs_norm.RunningStats] | None
+
+
+def load_init_policy(
+    spec: str, trainer: Trainer, cfg: PPOConfig, env_params: EnvParams
+) -> tuple[PPOParams, obs_norm.RunningStats]:
+    """(params, normalizer) of the policy ``spec`` (``shipped:NAME``, a path[@seed]), checked against the
+    run's abstract state (nothing is allocated); UsageError naming ``--init-policy`` if it does not fit."""
+    pol = resolve_policy(spec)
+    init = (pol.params, pol.normalizer)
+    keys = jax.random.split(jax.random.key(0), cfg.num_seeds)
+    try:
+        check_init_policy(jax.eval_shape(trainer.init, keys, env_params), *init)
+    except ValueError as e:
+        raise UsageError(f"--init-policy {spec!r}: {e}") from None
+    return init
+
+
+def build_training(
+    cfg: PPOConfig, env_table: dict[str, Any], init_policy: str | None = None
+) -> TrainingSetup:
+    """Env, env parameters and trainer of a run, and its initial policy (``init_policy``: a policy spec).
+
+    Raises:
+        UsageError: a bad env setting or an initial policy that does not fit the run's networks.
+    """
+    env, env_params = make_harv_env(env_table)
+    trainer = make_train(env, cfg, env_params, episode_metrics_fn=harv_episode_metrics)
+    init = None if init_policy is None else load_init_policy(init_policy, trainer, cfg, env_params)
+    return TrainingSetup(env, env_params, trainer, init)
+
+
+def write_run_record(
+    out_dir: Path,
+    preset: str,
+    cfg: PPOConfig,
+    env_table: dict[str, Any],
+    env_params: EnvParams,
+    init_policy: str | None = None,
+    target_recovery: float | None = None,
+) -> None:
+    """Write ``config.json`` (preset, PPO config, env settings, initial policy, target) and the spin bank."""
+    record: dict[str, Any] = {"preset": preset, "ppo": ppo_config.to_dict(cfg), "env": env_table}
+    if init_policy is not None:
+        record["init_policy"] = init_policy
+    if target_recovery is not None:
+        record["target_recovery"] = target_recovery
+    (out_dir / "config.json").write_text(json.dumps(record, indent=2))
+    save_spin_bank(out_dir, env_table, env_params)
