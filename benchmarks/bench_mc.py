@@ -14,7 +14,7 @@ decimated bands every 10 steps, chunks of ``--chunk`` runs sharded over the loca
 ``lower().compile()`` of the chunk function, ``run`` the loop over all chunks including the transfer of
 the results to the host (best of ``--repeats`` calls; each call compiles again, the first compile is
 reported). On a CPU, like the CLI, one XLA host device is created per core (``--host-devices``).
-Controllers come from ``harv_jax.commands.mc.build_controller`` (``hybrid`` and ``rl`` fly ``--policy``,
+Controllers come from ``harv_jax.control.registry.build_controller`` (``hybrid`` and ``rl`` fly ``--policy``,
 default the shipped policy); one that cannot be built is recorded as skipped.
 
 FLOPs per run-step come from XLA's cost analysis (``jit(...).lower(...).compile().cost_analysis()``) of one
@@ -187,7 +187,7 @@ def bench_envelope(name: str, ctrl, n: int, n_steps: int, chunk: int, seed: int)
         "compile_s": wall["compile"],
         "run_s": wall["run"],
         "run_steps_per_s": grid.n_runs * n_steps / wall["run"],
-        "recovery_fraction": float(emap.recovered.mean()),
+        "recovery_rate": float(emap.recovered.mean()),
     }
 
 
@@ -232,7 +232,7 @@ def main() -> None:
     import jax
 
     from benchmarks.common import machine_name
-    from harv_jax.commands.mc import build_controller
+    from harv_jax.control.registry import ControllerOptions, build_controller
 
     dev = jax.devices()[0]
     gpu = dev.platform != "cpu"
@@ -258,7 +258,7 @@ def main() -> None:
         for impl in impls:
             with _implementation(impl):
                 try:
-                    ctrl = build_controller(name, args.policy)
+                    ctrl = build_controller(name, ControllerOptions(policy=args.policy))
                 except Exception as e:  # e.g. hybrid not built yet: record and go on
                     skipped[name] = f"{type(e).__name__}: {e}"
                     print(f"{name}: skipped ({skipped[name]})", flush=True)
@@ -289,7 +289,7 @@ def main() -> None:
                 print(
                     f"{name:>7} ({impl}): envelope {env_n} x {env_n} = {e['runs']} runs: compile "
                     f"{e['compile_s']:.1f} s, run {e['run_s']:.1f} s, "
-                    f"recovered {100 * e['recovery_fraction']:.1f}%",
+                    f"recovered {100 * e['recovery_rate']:.1f}%",
                     flush=True,
                 )
     rows_current = [r for r in rows if r["implementation"] == "current"]

@@ -42,7 +42,7 @@ def build(batch: int, n_steps: int, policy: str | None, seed: int) -> dict:
     import jax.numpy as jnp
 
     from harv_jax.aircraft import harv
-    from harv_jax.commands.mc import build_controller
+    from harv_jax.control.registry import ControllerOptions, build_controller
     from harv_jax.dynamics.actuators import actuator_step
     from harv_jax.dynamics.integrate import rk4_body_step
     from harv_jax.dynamics.state import from_wind, is_finite, to_wind
@@ -88,7 +88,7 @@ def build(batch: int, n_steps: int, policy: str | None, seed: int) -> dict:
     out = {}
     variants = {"plant": (plant_step, 2, (body0, delta0, hold, params))}
     for name in ("smc", "hybrid"):
-        ctrl = build_controller(name, policy)
+        ctrl = build_controller(name, ControllerOptions(policy=policy))
         cstate0 = jax.vmap(ctrl.init)(params)
         variants[name] = (closed_step(ctrl), 3, (body0, delta0, cstate0, params))
     for name, (step, n_carry, args) in variants.items():

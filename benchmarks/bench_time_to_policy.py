@@ -35,7 +35,8 @@ def mc(controller, runs: int, seed: int) -> dict:
     import jax.numpy as jnp
 
     from harv_jax.aircraft import harv
-    from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, summarize_controller
+    from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+    from harv_jax.evaluation.summary import summarize_controller
     from harv_jax.scenarios import DEFAULT_ALPHA_TARGET_RAD
 
     inputs = sample_mc_inputs(jax.random.key(seed), runs, harv())

@@ -397,7 +397,7 @@ def test_version(monkeypatch, capsys):
 
 
 def test_hybrid_config_default_is_the_cli_default():
-    from harv_jax.commands.options import zeta_option
+    from harv_jax.cli_options import zeta_option
     from harv_jax.control.hybrid import HybridConfig
 
     assert HybridConfig().schedule == "continuous" == zeta_option().default

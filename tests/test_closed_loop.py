@@ -135,5 +135,5 @@ def test_recovers_at_least_95_percent_of_256_reset_bound_states():
     ref = jnp.array([0.349, 0.0, 0.0])
     run = jax.jit(jax.vmap(lambda x: evaluate(SMC, PARAMS, x, ref, KEY, 6000, DT, record_every=6000)[0]))
     s = summarize(jax.device_get(run(x0)))
-    assert s["recovered_fraction"] >= 0.95, s
+    assert s["recovery_rate"] >= 0.95, s
     assert s["outcome_counts"]["NONFINITE"] == 0

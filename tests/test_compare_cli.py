@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from cli_util import cli_run
 
-from harv_jax.commands.compare import COLUMNS, omega_settling_time_s
+from harv_jax.evaluation.comparison import omega_settling_time_s
+from harv_jax.evaluation.summary import COMPARE_COLUMNS as COLUMNS
 
 
 def _run(monkeypatch, capsys, *args):

@@ -20,10 +20,10 @@ from harv_jax.evaluation.envelope_map import (
     grid_states,
     make_grid,
     run_envelope,
-    summarize_envelope,
 )
 from harv_jax.evaluation.metrics import OUTCOME_NAMES, tracking_errors
 from harv_jax.evaluation.monte_carlo import TERMINAL_WINDOW_S
+from harv_jax.evaluation.summary import summarize_envelope
 
 DT_S = 0.01
 # 12 s with the 10 s hold window: the centre point (alpha0 = 0.436 rad, r0 = 0) recovers (about 0.2 s),
@@ -84,7 +84,7 @@ def test_map_shapes_and_outcome_accounting(env3x3):
     assert emap.terminal_error_rad.shape == (3, 3, 3)
     s = summarize_envelope(out, wall)
     assert sum(s["outcome_counts"].values()) == 9
-    assert s["recovery_fraction"] == pytest.approx(float(np.mean(emap.recovered)))
+    assert s["recovery_rate"] == pytest.approx(float(np.mean(emap.recovered)))
     # both outcomes occur, so the single-run comparisons below cover a recovered and an unrecovered point
     assert emap.recovered[1, 1] and not emap.recovered.all()
     assert np.isnan(emap.t_recover_s[~emap.recovered]).all()
@@ -170,7 +170,7 @@ def test_cli_writes_outputs_and_refuses_existing_dir(monkeypatch, capsys, tmp_pa
         rows = list(csv.DictReader(f))
     assert len(rows) == 9
     assert [r["outcome"] for r in rows] == [OUTCOME_NAMES[c] for c in outcome.ravel()]  # row-major
-    assert smc["recovery_fraction"] == pytest.approx(np.mean(outcome == 0))
+    assert smc["recovery_rate"] == pytest.approx(np.mean(outcome == 0))
 
     before = (out / "envelope.json").read_text()
     code, _, err = _run(monkeypatch, capsys, *args, "--out", str(out))

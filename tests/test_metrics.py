@@ -16,13 +16,12 @@ from harv_jax.evaluation.metrics import (
     Outcome,
     chatter_index_rad2,
     compute_metrics,
-    metrics_to_dict,
     recovered_mask,
     settle_time_s,
-    summarize,
     total_variation_rad,
     tracking_errors,
 )
+from harv_jax.evaluation.summary import metrics_to_dict, summarize
 from harv_jax.units import RAD_PER_DEG
 
 DT = 0.01
@@ -168,7 +167,7 @@ def test_batched_summary():
     m = jax.tree.map(lambda *a: np.stack(a), *runs)  # what vmap over runs returns
     chex.assert_shape(m.outcome, (2,))
     s = summarize(m)
-    assert s["n_runs"] == 2 and s["recovered_fraction"] == 0.5
+    assert s["n_runs"] == 2 and s["recovery_rate"] == 0.5
     assert s["outcome_counts"] == {
         "RECOVERED": 1,
         "TIMEOUT": 1,

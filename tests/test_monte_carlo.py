@@ -19,8 +19,8 @@ from harv_jax.evaluation.monte_carlo import (
     TERMINAL_WINDOW_S,
     run_mc,
     sample_mc_inputs,
-    summarize_controller,
 )
+from harv_jax.evaluation.summary import summarize_controller
 
 N_STEPS = 300  # 3 s: enough for distinct outcomes (most runs TIMEOUT, some DEPARTED)
 REF = jnp.array([0.349, 0.0, 0.0])

@@ -7,14 +7,9 @@ import json
 import numpy as np
 
 from harv_jax.numfmt import round_floats, round_sig, write_json
-from harv_jax.plotting import (
-    band_limits_deg,
-    plot_mc_bands_overlay,
-    plot_terminal_errors,
-    plot_time_histories,
-    unwrap_angle_rad,
-)
-from harv_jax.plotting_maps import outcome_labels
+from harv_jax.plots.maps import outcome_labels
+from harv_jax.plots.mc import band_limits_deg, plot_mc_bands_overlay, plot_terminal_errors
+from harv_jax.plots.time_histories import plot_time_histories, unwrap_angle_rad
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -78,7 +73,8 @@ def test_json_numbers_are_rounded(tmp_path):
 def test_metrics_dict_stores_the_outcome_by_name():
     import jax.numpy as jnp
 
-    from harv_jax.evaluation.metrics import OUTCOME_NAMES, metrics_to_dict
+    from harv_jax.evaluation.metrics import OUTCOME_NAMES
+    from harv_jax.evaluation.summary import metrics_to_dict
 
     class _M:  # the fields metrics_to_dict reads
         __dataclass_fields__ = {"outcome": None, "t_recover_s": None}

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from cli_util import cli_run
 
-from harv_jax.commands.report import markdown_to_html
+from harv_jax.report import markdown_to_html
 
 MC_COMMAND = "harv-jax mc --controller smc,hybrid --runs 1000 --seed 7 --out runs/mc"
 
@@ -207,7 +207,7 @@ def test_quickstart_dir_with_subdirs_and_envelope(monkeypatch, capsys, tmp_path)
         },
         "runs_per_controller": 10000, "duration_s": 60.0, "seed": 5,
         "command": "harv-jax envelope --n 100 --seed 5",
-        "controllers": {"smc": {"recovery_fraction": 0.75,
+        "controllers": {"smc": {"recovery_rate": 0.75,
                                 "outcome_counts": {"RECOVERED": 7500, "TIMEOUT": 2500},
                                 "wall_time_s": {"compile": 12.0, "run": 300.0}}},
     }  # fmt: skip
@@ -227,7 +227,7 @@ def test_quickstart_dir_with_subdirs_and_envelope(monkeypatch, capsys, tmp_path)
     assert prov["spin"][0].startswith("harv-jax fly --controller smc --scenario spin --target-alpha 0.349")
     assert prov["spin"][0].endswith("(reconstructed)")
     env_rows = _md_table_rows(md, "| metric | smc |")
-    assert env_rows["recovery fraction"] == ["75.0%"] and env_rows["outcome recovered"] == ["7,500"]
+    assert env_rows["recovery rate"] == ["75.0%"] and env_rows["outcome recovered"] == ["7,500"]
     assert env_rows["run [s]"] == ["300.00"]
     assert "| x: alpha0 | 0 .. 57.3 deg (100 points) |" in md
     assert "| outcome | RECOVERED |" in md and "| overshoot_rad | 0.1, 0, 0.02 |" in md
@@ -292,7 +292,7 @@ def test_markdown_to_html_tables_headings_code():
 def test_build_report_api_in_place_and_nested_out(tmp_path):
     """The API ``harv-jax quickstart`` uses: ``build_report(run_dir, run_dir)`` writes into the run dir; a
     report dir inside the run dir is not reported on as part of the run."""
-    from harv_jax.commands.report import build_report
+    from harv_jax.report import build_report
 
     run = tmp_path / "mc"
     make_mc_dir(run)

@@ -18,7 +18,8 @@ from speed_reference import (
 from harv_jax.aircraft import harv
 from harv_jax.control.lie import smc_lie_terms
 from harv_jax.control.smc import SMCConfig, default_gains, guarded_solve, make_smc, smc_command
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, summarize_controller
+from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+from harv_jax.evaluation.summary import summarize_controller
 
 REF = jnp.array([0.349, 0.0, 0.0])
 #: Wide state box: deep stall, inverted, steep, fast and slow [V, alpha, beta, p, q, r, mu, gamma, chi, h].

@@ -1,7 +1,9 @@
 """`harv-jax envelope`: recovery envelope map of one or more controllers over a 2-D initial-state grid.
 
+The command parses the grid flags; the work is ``harv_jax.evaluation.envelope_study``.
+
 Outputs in DIR: ``envelope_recovery.png`` (outcome maps side by side), ``envelope_time.png`` (recovery
-time maps), ``envelope.json`` (grid axes, fixed states, per-controller recovery fraction, outcome
+time maps), ``envelope.json`` (grid axes, fixed states, per-controller recovery rate, outcome
 counts, recovery-time statistics, wall times), ``envelope_grid.csv`` (one row per controller and grid
 point) and ``envelope_grid.npz`` (the maps as arrays: ``x_values``, ``y_values``, ``x0_wind`` and
 ``<controller>/<field>`` [n_y, n_x]). See ``harv_jax.evaluation.envelope_map`` for the grid layout and
@@ -10,22 +12,16 @@ the default fixed states.
 
 from __future__ import annotations
 
-import csv
 import math
-import shlex
-import sys
 from pathlib import Path
 
-import numpy as np
 import typer
 
-from harv_jax.commands.options import policy_option, zeta_option
+from harv_jax.cli_options import controllers_help, policy_option, zeta_option
 from harv_jax.errors import UsageError
-from harv_jax.numfmt import write_json
-from harv_jax.policies import DEFAULT_POLICY_SPEC
+from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S, H0_FT
 
 MAX_POINTS_PER_AXIS = 1000
-DT_S = 0.01
 
 
 def _float(text: str, what: str) -> float:
@@ -106,123 +102,10 @@ def build_grid(grid: str, n: int, fixed: str):
         raise UsageError(str(e)) from None
 
 
-def write_grid_csv(path: Path, grid, maps: dict) -> None:
-    """One row per (controller, grid point): indices, the two grid values, outcome and metrics."""
-    from harv_jax.evaluation.metrics import OUTCOME_NAMES
-
-    xs, ys = grid.x_values, grid.y_values
-    header = ["controller", "ix", "iy", grid.x_name, grid.y_name, "outcome", "recovered", "t_recover_s",
-              "t_recover_alpha_s", "altitude_loss_ft", "terminal_alpha_err_deg", "terminal_beta_err_deg",
-              "terminal_mu_err_deg"]  # fmt: skip
-    with path.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(header)
-        for name, m in maps.items():
-            term = np.degrees(m.terminal_error_rad)
-            for iy in range(grid.n_y):
-                for ix in range(grid.n_x):
-                    w.writerow(
-                        [
-                            name,
-                            ix,
-                            iy,
-                            f"{xs[ix]:.6g}",
-                            f"{ys[iy]:.6g}",
-                            OUTCOME_NAMES[int(m.outcome[iy, ix])],
-                            bool(m.recovered[iy, ix]),
-                            f"{m.t_recover_s[iy, ix]:.4g}",
-                            f"{m.t_recover_alpha_s[iy, ix]:.4g}",
-                            f"{m.altitude_loss_ft[iy, ix]:.5g}",
-                            *[f"{v:.5g}" for v in term[iy, ix]],
-                        ]  # fmt: skip
-                    )
-
-
-def run_envelope_map(
-    controllers: list[str],
-    policy: str | None,
-    grid,
-    target_alpha: float,
-    duration: float,
-    seed: int,
-    out_dir: Path,
-    chunk: int = 250,
-    progress: bool = True,
-    zeta: str = "continuous",
-) -> dict:
-    """Fly every controller from every grid point; write the maps, envelope.json, CSV and NPZ."""
-    import jax
-    import jax.numpy as jnp
-
-    from harv_jax.aircraft import harv
-    from harv_jax.commands.mc import build_controller
-    from harv_jax.evaluation.envelope_map import (
-        GRID_AXES,
-        envelope_inputs,
-        grid_description,
-        grid_states,
-        run_envelope,
-        summarize_envelope,
-    )
-    from harv_jax.evaluation.metrics import OUTCOME_NAMES
-    from harv_jax.plotting_maps import plot_outcome_maps, plot_time_maps
-
-    ctrls = {name: build_controller(name, policy, zeta) for name in controllers}
-    n_steps = int(round(duration / DT_S))
-    reference = jnp.array([target_alpha, 0.0, 0.0])
-    inputs = envelope_inputs(jax.random.key(seed), grid, harv())
-    doc: dict = {
-        "grid": grid_description(grid), "runs_per_controller": grid.n_runs, "target_alpha_rad": target_alpha,
-        "reference_rad": [target_alpha, 0.0, 0.0], "duration_s": n_steps * DT_S, "dt_s": DT_S, "seed": seed,
-        "aircraft": "nominal", "devices": [str(d) for d in jax.local_devices()],
-        "policy": (policy or DEFAULT_POLICY_SPEC) if {"rl", "hybrid"} & set(controllers) else None,
-        "zeta_schedule": zeta if "hybrid" in controllers else None,
-        "command": "harv-jax " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
-        "controllers": {},
-    }  # fmt: skip
-    maps = {}
-    for name, ctrl in ctrls.items():
-        if progress:
-            typer.echo(
-                f"[envelope] {name}: {grid.n_y} x {grid.n_x} = {grid.n_runs} runs x {n_steps} steps ..."
-            )
-        m, out, wall = run_envelope(ctrl, inputs, grid, reference, n_steps, DT_S, chunk)
-        maps[name] = m
-        doc["controllers"][name] = summarize_envelope(out, wall, n_steps)
-        if progress:
-            typer.echo(
-                f"[envelope] {name}: recovered {100 * doc['controllers'][name]['recovery_fraction']:.1f}%, "
-                f"compile {wall['compile']:.1f} s, run {wall['run']:.1f} s"
-            )
-    ax_x, ax_y = GRID_AXES[grid.x_name], GRID_AXES[grid.y_name]
-    x_disp, y_disp = grid.x_values * ax_x.display_scale, grid.y_values * ax_y.display_scale
-    x_label, y_label = f"{grid.x_name} [{ax_x.display_unit}]", f"{grid.y_name} [{ax_y.display_unit}]"
-    fixed = ", ".join(f"{k}0={v:g}" for k, v in doc["grid"]["fixed_state"].items() if v != 0.0) + ", others 0"
-    plot_outcome_maps(
-        x_disp, y_disp, {n: m.outcome for n, m in maps.items()}, OUTCOME_NAMES, x_label, y_label,
-        out_dir / "envelope_recovery.png",
-        title=f"recovery outcome after {n_steps * DT_S:g} s, alpha_d = {np.degrees(target_alpha):.1f} deg"
-        f"\n(fixed: {fixed})", duration_s=n_steps * DT_S,
-    )  # fmt: skip
-    plot_time_maps(
-        x_disp, y_disp, {n: m.t_recover_s for n, m in maps.items()}, x_label, y_label,
-        out_dir / "envelope_time.png",
-        title=f"recovery time (grey: not recovered by {n_steps * DT_S:g} s), alpha_d = "
-        f"{np.degrees(target_alpha):.1f} deg\n(fixed: {fixed})",
-    )  # fmt: skip
-    arrays = {"x_values": grid.x_values, "y_values": grid.y_values, "x0_wind": grid_states(grid)}
-    for name, m in maps.items():
-        arrays.update({f"{name}/{field}": np.asarray(v) for field, v in m._asdict().items()})
-    np.savez_compressed(out_dir / "envelope_grid.npz", **arrays)
-    write_grid_csv(out_dir / "envelope_grid.csv", grid, maps)
-    write_json(out_dir / "envelope.json", doc)
-    return doc
-
-
 def register(app: typer.Typer) -> None:
     @app.command()
     def envelope(
-        controller: str = typer.Option("smc", help="Controllers, comma-separated: smc, rl, hybrid."),
+        controller: str = typer.Option("smc", help=controllers_help()),
         policy: str = policy_option(),
         grid: str = typer.Option(
             "alpha0:r0",
@@ -232,11 +115,13 @@ def register(app: typer.Typer) -> None:
         ),
         n: int = typer.Option(100, help="Points per grid axis (n x n runs per controller)."),
         duration: float = typer.Option(60.0, help="Run length, s."),
-        target_alpha: float = typer.Option(0.349, help="Target angle of attack, rad (beta_d = mu_d = 0)."),
+        target_alpha: float = typer.Option(
+            ALPHA_TARGET_RAD, help="Target angle of attack, rad (beta_d = mu_d = 0)."
+        ),
         fixed: str = typer.Option(
             "",
             help="Off-grid initial states, e.g. 'V0=300,h0=20000' (default V0=800 ft/s, alpha0=0.436 rad, "
-            "beta0=p0=q0=r0=mu0=gamma0=chi0=0, h0=25000 ft).",
+            f"beta0=p0=q0=r0=mu0=gamma0=chi0=0, h0={H0_FT:g} ft).",
         ),
         zeta: str = zeta_option(),
         seed: int = typer.Option(0, help="Seed of the controllers' keys (the grid itself is deterministic)."),
@@ -245,20 +130,25 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
     ) -> None:
         """Recovery envelope map: outcome and recovery time over an initial-state grid, per controller."""
-        from harv_jax.commands.mc import build_controller, parse_controllers, validate
+        from harv_jax.cli_options import check_mc_options, command_line
+        from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
+        from harv_jax.evaluation.envelope_study import envelope_study, write_envelope
         from harv_jax.guards import check_closed_loop_batch, check_seed
         from harv_jax.outdir import prepare_out_dir
 
         names = parse_controllers(controller)
         g = build_grid(grid, n, fixed)
-        validate(g.n_runs, target_alpha, duration, chunk)
+        check_mc_options(g.n_runs, target_alpha, duration, chunk)
         check_seed(seed)
         n_steps = round(duration / DT_S)
         check_closed_loop_batch(g.n_runs, n_steps, n_steps, chunk, len(names), runs_flag="--n x --n =")
-        for name in names:
-            build_controller(name, policy, zeta)  # fail fast, before creating the output directory
+        for name in names:  # fail fast, before creating the output directory
+            build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
         out_dir = prepare_out_dir(out, force)
-        run_envelope_map(names, policy, g, target_alpha, duration, seed, out_dir, chunk, zeta=zeta)
+        study = envelope_study(
+            names, policy, g, target_alpha, duration, seed, chunk, zeta, command_line(), typer.echo
+        )
+        write_envelope(out_dir, study)
         typer.echo(
             f"wrote {out_dir}/envelope_recovery.png, envelope_time.png, envelope.json, envelope_grid.csv, "
             "envelope_grid.npz"

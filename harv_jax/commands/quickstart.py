@@ -1,9 +1,9 @@
 """`harv-jax quickstart`: the main job on shipped defaults.
 
 1. the spin comparison: RL-only vs SMC-only vs hybrid after a 30 s developed spin, and from a fixed upset
-   (``harv-jax compare``), with the shipped policy;
-2. a Monte Carlo of SMC, RL and hybrid from the paper's reset bounds (``harv-jax mc``);
-3. the report of both (``harv-jax report``): report.md and report.html.
+   (as ``harv-jax compare``), with the shipped policy;
+2. a Monte Carlo of SMC, RL and hybrid from the paper's reset bounds (as ``harv-jax mc``);
+3. the report of both (as ``harv-jax report``): report.md and report.html.
 """
 
 from __future__ import annotations
@@ -13,7 +13,13 @@ from pathlib import Path
 
 import typer
 
-from harv_jax.commands.options import policy_option, zeta_option
+from harv_jax.cli_options import policy_option, zeta_option
+
+#: The controllers of the quickstart (names in harv_jax.control.registry).
+QUICKSTART_CONTROLLERS = ("smc", "rl", "hybrid")
+DURATION_S = 60.0
+SPIN_S = 30.0
+CHUNK = 250
 
 
 def register(app: typer.Typer) -> None:
@@ -27,24 +33,31 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
     ) -> None:
         """Spin comparison and a Monte Carlo of SMC, RL and hybrid with the shipped policy, plus a report."""
-        from harv_jax.commands.compare import run_compare
-        from harv_jax.commands.mc import build_controller, run_monte_carlo, validate
+        from harv_jax.cli_options import check_mc_options, command_line
+        from harv_jax.control.registry import ControllerOptions, build_controller
+        from harv_jax.evaluation.comparison import FIXED_STATE, compare, write_comparison
+        from harv_jax.evaluation.mc_study import monte_carlo, write_monte_carlo
         from harv_jax.guards import check_closed_loop_batch, check_seed
         from harv_jax.numfmt import fmt_num
         from harv_jax.outdir import prepare_out_dir
+        from harv_jax.report import build_report
+        from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
-        validate(runs, 0.349, 60.0, 250)
+        names = list(QUICKSTART_CONTROLLERS)
+        check_mc_options(runs, ALPHA_TARGET_RAD, DURATION_S, CHUNK)
         check_seed(seed)
-        check_closed_loop_batch(runs, 6000, 10, 250, 3)
-        names = ["smc", "rl", "hybrid"]
+        check_closed_loop_batch(runs, round(DURATION_S / DT_S), 10, CHUNK, len(names))
         for name in names:
-            build_controller(name, policy, zeta)
+            build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
         out_dir = prepare_out_dir(out, force)
         t0 = time.perf_counter()
         typer.echo("[quickstart] 1/3 spin comparison: 30 s developed spin, then RL, SMC and hybrid recover")
         prepare_out_dir(out_dir / "compare")  # with the run marker: --force may replace it later
-        rows = run_compare(names, policy, zeta, 0.349, 60.0, 30.0, None, seed, out_dir / "compare")
-        for r in rows:
+        comp = compare(
+            names, policy, zeta, ALPHA_TARGET_RAD, DURATION_S, SPIN_S, FIXED_STATE, seed, typer.echo
+        )
+        write_comparison(out_dir / "compare", comp, command_line())
+        for r in comp.rows:
             if r["scenario"] == "spin":
                 t_rec = r["recovery_time_s"]
                 typer.echo(
@@ -53,22 +66,19 @@ def register(app: typer.Typer) -> None:
                 )
         typer.echo(f"[quickstart] 2/3 Monte Carlo: {runs} runs x 60 s from the paper's reset bounds")
         prepare_out_dir(out_dir / "mc")  # with the run marker: --force may replace it later
-        s = run_monte_carlo(names, policy, runs, 0.349, 60.0, seed, False, out_dir / "mc", zeta=zeta)
+        study = monte_carlo(
+            names, policy, runs, ALPHA_TARGET_RAD, DURATION_S, seed, False, CHUNK, zeta=zeta,
+            command=command_line(), progress=typer.echo,
+        )  # fmt: skip
+        write_monte_carlo(out_dir / "mc", study)
         typer.echo("[quickstart] 3/3 report")
-        report = _write_report(out_dir)
+        paths = build_report(out_dir, out_dir)
+        report = ": " + ", ".join(str(p) for p in paths)
         typer.echo(f"[quickstart] done in {time.perf_counter() - t0:.0f} s; results in {out_dir}" + report)
-        for name, c in s["controllers"].items():
+        for name, c in study.summary["controllers"].items():
             a = c["terminal_error_deg"]["alpha"]
             typer.echo(
                 f"[quickstart] {name}: recovery rate {c['recovery_rate']:.3f}, terminal alpha error "
                 f"{a['mean']:.3f} deg ({100 * a['within_0p5']:.1f}% within 0.5 deg), control TV "
                 f"{c['control_tv']['mean']:.2f} rad"
             )
-
-
-def _write_report(out_dir: Path) -> str:
-    """Run ``harv-jax report`` on the quickstart folder; returns a note for the final message."""
-    from harv_jax.commands.report import build_report
-
-    paths = build_report(out_dir, out_dir)
-    return ": " + ", ".join(str(p) for p in paths)

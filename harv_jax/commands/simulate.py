@@ -8,12 +8,14 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from harv_jax.cli_options import validate_state
 from harv_jax.errors import UsageError
+from harv_jax.task.spec import DT_S, H0_FT
 
 #: Default initial state (straight and level near trim at 600 ft/s, 25,000 ft).
 DEFAULT_STATE = {
     "V": 600.0, "alpha": 0.089, "beta": 0.0, "p": 0.0, "q": 0.0, "r": 0.0,
-    "mu": 0.0, "gamma": 0.0, "chi": 0.0, "h": 25000.0,
+    "mu": 0.0, "gamma": 0.0, "chi": 0.0, "h": H0_FT,
 }  # fmt: skip
 DEFAULT_CONTROLS = {"de": -0.0045, "da": 0.0, "dr": 0.0}
 
@@ -40,27 +42,6 @@ def parse_assignments(text: str, allowed: dict[str, float], what: str) -> dict[s
             raise UsageError(f"{what} {name}={value} is not finite")
         out[name] = v
     return out
-
-
-#: Physically meaningful initial states (name -> (low, high, unit)): speeds up to about Mach 2.7, body rates
-#: beyond any spin or tumble of this aircraft excluded, altitudes inside the atmosphere model (troposphere
-#: and lower stratosphere, 20 km).
-STATE_LIMITS = {
-    "V": (1.0, 3000.0, "ft/s"), "alpha": (-math.pi, math.pi, "rad"), "beta": (-1.5707, 1.5707, "rad"),
-    "p": (-10.0, 10.0, "rad/s"), "q": (-10.0, 10.0, "rad/s"), "r": (-10.0, 10.0, "rad/s"),
-    "mu": (-2 * math.pi, 2 * math.pi, "rad"), "gamma": (-math.pi / 2, math.pi / 2, "rad"),
-    "chi": (-2 * math.pi, 2 * math.pi, "rad"), "h": (0.0, 65_000.0, "ft"),
-}  # fmt: skip
-
-
-def validate_state(state: dict[str, float]) -> None:
-    """Raise UsageError for a physically meaningless initial state (outside :data:`STATE_LIMITS`)."""
-    for name, v in state.items():
-        if name not in STATE_LIMITS:
-            continue
-        lo, hi, unit = STATE_LIMITS[name]
-        if not (math.isfinite(v) and lo <= v <= hi):
-            raise UsageError(f"state {name}={v} {unit} is outside the allowed [{lo:g}, {hi:g}] {unit}")
 
 
 def validate_controls(controls: dict[str, float]) -> None:
@@ -109,7 +90,7 @@ def register(app: typer.Typer) -> None:
         ),
         controls: str = typer.Option("", help="Fixed deflections, e.g. 'de=-0.3,da=0.1,dr=0.2' (rad)."),
         duration: float = typer.Option(30.0, help="Duration, s (> 0)."),
-        dt: float = typer.Option(0.01, help="RK4 step, s (0 < dt <= 0.05)."),
+        dt: float = typer.Option(DT_S, help="RK4 step, s (0 < dt <= 0.05)."),
         throttle: float = typer.Option(0.2, help="Fixed throttle in [0, 1]."),
         out: Path = typer.Option(Path("runs/simulate"), help="Output directory."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
@@ -118,7 +99,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.dynamics import CONTROL_NAMES, WIND_STATE_NAMES
         from harv_jax.guards import check_simulate
         from harv_jax.outdir import prepare_out_dir
-        from harv_jax.plotting import plot_time_histories
+        from harv_jax.plots.time_histories import plot_time_histories
 
         s = parse_assignments(state, DEFAULT_STATE, "state")
         c = parse_assignments(controls, DEFAULT_CONTROLS, "control")

@@ -11,9 +11,9 @@ from harv_jax.evaluation.metrics import (
     default_criterion,
     default_envelope,
     recovered_mask,
-    summarize,
     tracking_errors,
 )
+from harv_jax.evaluation.summary import summarize
 
 __all__ = [
     "OUTCOME_NAMES",

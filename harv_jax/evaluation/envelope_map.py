@@ -36,8 +36,7 @@ import numpy as np
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
 from harv_jax.dynamics.state import WIND_INDEX, WIND_STATE_NAMES
-from harv_jax.evaluation.metrics import OUTCOME_NAMES
-from harv_jax.evaluation.monte_carlo import MCInputs, MCRunOutput, run_mc, summarize_controller
+from harv_jax.evaluation.monte_carlo import MCInputs, MCRunOutput, run_mc
 from harv_jax.scenarios import DEFAULT_H0_FT, RESET_BOUNDS
 from harv_jax.units import DEG_PER_RAD
 
@@ -258,21 +257,6 @@ def run_envelope(
     # record_every = n_steps: the decimated history is a single sample per run (memory stays tiny)
     out, wall = run_mc(controller, inputs, reference_rad, n_steps, dt_s, n_steps, chunk_size)
     return to_map(out, grid), out, wall
-
-
-def summarize_envelope(
-    out: MCRunOutput, wall: dict[str, float], n_steps: int | None = None
-) -> dict[str, Any]:
-    """Per-controller block of ``envelope.json``: ``recovery_fraction``, counts of every ``Outcome``
-    (``outcome_counts``) and the Monte Carlo block of ``summarize_controller`` (recovery time, terminal
-    errors, altitude loss, control activity, wall times); ``n_steps``: steps per run."""
-    outcome = np.asarray(out.metrics.outcome)
-    block = summarize_controller(out, wall, n_steps)
-    return {
-        "recovery_fraction": block["recovery_rate"],
-        "outcome_counts": {name: int((outcome == code).sum()) for code, name in enumerate(OUTCOME_NAMES)},
-        **block,
-    }
 
 
 def grid_description(grid: EnvelopeGrid) -> dict[str, Any]:

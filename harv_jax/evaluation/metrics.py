@@ -11,8 +11,6 @@ Recovery criterion (``RecoveryCriterion``, the issue's): |e_alpha| < 2 deg, |e_b
 from __future__ import annotations
 
 import enum
-from collections.abc import Mapping
-from typing import Any
 
 import jax.numpy as jnp
 import numpy as np
@@ -319,46 +317,3 @@ def compute_metrics(
         final_error_rad=e[-1],
         max_abs_gamma_rad=jnp.max(jnp.abs(x_wind[:, 7])),
     )
-
-
-def metrics_to_dict(m: RunMetrics) -> dict[str, Any]:
-    """One run's metrics as JSON-ready Python values (NaN -> None; ``outcome`` is the name, e.g.
-    ``RECOVERED``, ``outcome_code`` the ``Outcome`` integer)."""
-
-    def conv(v):
-        a = np.asarray(v)
-        if a.dtype == bool:
-            return a.tolist()
-        if np.issubdtype(a.dtype, np.integer):
-            return a.tolist()
-        a = a.astype(float)
-        if a.ndim == 0:
-            return None if not np.isfinite(a) else float(a)
-        return [None if not np.isfinite(z) else float(z) for z in a.ravel()]
-
-    out = {k: conv(getattr(m, k)) for k in m.__dataclass_fields__}
-    code = int(np.asarray(m.outcome))
-    out["outcome"] = OUTCOME_NAMES[code]
-    out["outcome_code"] = code
-    out["outcome_name"] = OUTCOME_NAMES[code]  # older readers
-    return out
-
-
-def summarize(m: RunMetrics) -> Mapping[str, Any]:
-    """Host-side summary of a batch of runs (leading axis): outcome counts, recovery fraction and
-    recovery-time percentiles (recovered runs only)."""
-    outcome = np.asarray(m.outcome)
-    n = int(outcome.shape[0])
-    rec = np.asarray(m.recovered)
-    t_rec = np.asarray(m.t_recover_s)[rec]
-    pct = (5, 25, 50, 75, 95, 100)
-    return {
-        "n_runs": n,
-        "recovered_fraction": float(rec.mean()) if n else float("nan"),
-        "outcome_counts": {name: int((outcome == code).sum()) for code, name in enumerate(OUTCOME_NAMES)},
-        "recovered_and_in_envelope_fraction": float((rec & ~np.asarray(m.left_envelope)).mean()),
-        "t_recover_s_percentiles": (
-            {f"p{p}": float(np.percentile(t_rec, p)) for p in pct} if t_rec.size else {}
-        ),
-        "t_recover_s_mean": float(t_rec.mean()) if t_rec.size else None,
-    }

@@ -22,7 +22,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
 from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.metrics import OUTCOME_NAMES, RunMetrics, tracking_errors
+from harv_jax.evaluation.metrics import RunMetrics, tracking_errors
 from harv_jax.scenarios import sample_table_states
 
 #: State components the paper's Monte Carlo samples (the others start at 0 / h0).
@@ -200,16 +200,6 @@ def run_mc(
     return out, {"compile": t_compile, "run": t_run}
 
 
-def _pct(a: np.ndarray, q: float) -> float | None:
-    return float(np.percentile(a, q)) if a.size else None
-
-
-def _by_channel(per_run: Any) -> dict[str, float]:
-    """Mean over runs of a per-channel [N, 3] metric, keyed by surface."""
-    means = np.mean(np.asarray(per_run, np.float64), axis=0)
-    return {name: float(v) for name, v in zip(("elevator", "aileron", "rudder"), means, strict=True)}
-
-
 def gate_summary(info: dict[str, Any]) -> dict[str, Any]:
     """The hybrid's per-channel zeta, how often the policy acted unmodified, the corrections and the
     certificate of the command that acts (steps pooled over runs; saturated = the box clipped the command).
@@ -246,91 +236,4 @@ def gate_summary(info: dict[str, Any]) -> dict[str, Any]:
             "the controller model for the command that acts; steps with an exact solve and the channel in "
             "its sliding mode",
         },
-    }
-
-
-def summarize_controller(
-    out: MCRunOutput, wall: dict[str, float], n_steps: int | None = None
-) -> dict[str, Any]:
-    """The per-controller block of ``summary.json`` (names relied on by users' scripts).
-
-    ``n_steps`` (steps per run) turns the hybrid's per-step flags into counts per run.
-    """
-    m = out.metrics
-    outcome = np.asarray(m.outcome)
-    n = int(outcome.size)
-    rec = np.asarray(m.recovered)
-    t_rec = np.asarray(m.t_recover_s)[rec]
-    t_alpha = np.asarray(m.t_recover_alpha_s, dtype=float)
-    term_deg = np.degrees(np.asarray(out.terminal_error_rad))
-    term = {}
-    for i, name in enumerate(("alpha", "beta", "mu")):
-        e = term_deg[:, i]
-        e = e[np.isfinite(e)]
-        term[name] = {
-            "mean": float(e.mean()) if e.size else None,
-            "std": float(e.std()) if e.size else None,
-            "p5": _pct(e, 5),
-            "p50": _pct(e, 50),
-            "p95": _pct(e, 95),
-            "within_0p5": float(np.mean(np.abs(term_deg[:, i]) <= 0.5)),
-            "within_2": float(np.mean(np.abs(term_deg[:, i]) <= 2.0)),
-        }
-    counts = {name: int((outcome == code).sum()) for code, name in enumerate(OUTCOME_NAMES)}
-    info = out.info_means
-
-    def per_run(key: str) -> float | None:
-        """Mean over runs of the per-run count (n_steps given) or step fraction of a per-step flag."""
-        if key not in info:
-            return None
-        return float(np.mean(info[key]) * (n_steps if n_steps else 1))
-
-    hybrid = {
-        "zeta_active_fraction": float(np.mean(info["zeta"])) if "zeta" in info else None,
-        "zeta_switches_per_run": per_run("zeta_switched"),
-        "fallback_fraction": float(np.mean(info["fallback"])) if "fallback" in info else None,
-        "fallbacks_per_run": per_run("fallback_entered"),
-        **gate_summary(info),
-    }
-    return {
-        "recovery_rate": float(rec.mean()) if n else None,
-        "recovery_time_s": {
-            "mean": float(t_rec.mean()) if t_rec.size else None,
-            "p50": _pct(t_rec, 50),
-            "p95": _pct(t_rec, 95),
-        },
-        "alpha_recovery_time_s": {  # |e_alpha| < 2 deg and ||omega|| < 0.17 rad/s from then on
-            "fraction": float(np.mean(np.isfinite(t_alpha))),
-            "p50": _pct(t_alpha[np.isfinite(t_alpha)], 50),
-            "p95": _pct(t_alpha[np.isfinite(t_alpha)], 95),
-        },
-        "terminal_error_deg": term,
-        "altitude_loss_ft": {
-            "mean": float(np.mean(m.altitude_loss_ft)),
-            "p95": _pct(np.asarray(m.altitude_loss_ft), 95),
-        },
-        "control_tv": {
-            "mean": float(np.mean(np.sum(m.control_tv_rad, axis=-1))),
-            "by_channel": _by_channel(m.control_tv_rad),
-            "unit": "rad",
-        },
-        "chatter_index": {
-            "mean": float(np.mean(np.sum(m.chatter_index_rad2, axis=-1))),
-            "by_channel": _by_channel(m.chatter_index_rad2),
-            "unit": "rad^2",
-        },
-        "saturation_fraction": float(np.mean(m.sat_position_fraction)),
-        "rate_saturation_fraction": float(np.mean(m.sat_rate_fraction)),
-        "safety_interventions": per_run("intervened") or 0.0,
-        "safety_interventions_unit": "steps with an intervention per run" if n_steps else "step fraction",
-        "hybrid": hybrid,
-        "outcomes": {
-            "recovered": counts["RECOVERED"],
-            "departed": counts["DEPARTED"] + counts["GROUND_HIT"],
-            "nonfinite": counts["NONFINITE"],
-            "timeout": counts["TIMEOUT"],
-        },
-        "ground_hits_in_departed": counts["GROUND_HIT"],
-        "left_envelope_fraction": float(np.mean(m.left_envelope)),
-        "wall_time_s": {"compile": wall["compile"], "run": wall["run"]},
     }

@@ -1,0 +1,163 @@
+"""Command-line options and validators shared by several commands (one definition, one help text).
+
+Validators raise :class:`~harv_jax.errors.UsageError` with one line naming the value and what is allowed;
+resource guards (memory, seeds) are in ``harv_jax.guards``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shlex
+import sys
+from pathlib import Path
+
+import typer
+
+from harv_jax.errors import UsageError
+from harv_jax.task.spec import ALPHA_MAX_RAD, ALPHA_MIN_RAD, DT_S, H0_FT
+
+POLICY_HELP = (
+    "rl/hybrid policy: run folder, .npz, checkpoint\\[@seed], shipped:recovery (default), "
+    "shipped:paper-full, shipped:paper-partial."
+)
+ZETA_HELP = (
+    "Hybrid zeta schedule: continuous, hysteresis (the paper's), gated (per channel, from the reaching "
+    "condition), always, never."
+)
+MAX_RUNS = 1_000_000
+MAX_DURATION_S = 600.0
+SWITCHING = ("sat", "sign")
+#: Built-in scenarios of ``fly`` (anything else is a state file).
+SCENARIOS = ("spin", "random")
+REQUIRED_STATE_NAMES = ("V", "alpha", "beta", "p", "q", "r", "mu", "gamma")
+#: Physically meaningful initial states (name -> (low, high, unit)): speeds up to about Mach 2.7, body rates
+#: beyond any spin or tumble of this aircraft excluded, altitudes inside the atmosphere model (troposphere
+#: and lower stratosphere, 20 km).
+STATE_LIMITS = {
+    "V": (1.0, 3000.0, "ft/s"), "alpha": (-math.pi, math.pi, "rad"), "beta": (-1.5707, 1.5707, "rad"),
+    "p": (-10.0, 10.0, "rad/s"), "q": (-10.0, 10.0, "rad/s"), "r": (-10.0, 10.0, "rad/s"),
+    "mu": (-2 * math.pi, 2 * math.pi, "rad"), "gamma": (-math.pi / 2, math.pi / 2, "rad"),
+    "chi": (-2 * math.pi, 2 * math.pi, "rad"), "h": (0.0, 65_000.0, "ft"),
+}  # fmt: skip
+
+
+def policy_option():
+    """``--policy`` (default None = the default shipped policy, ``shipped:recovery``)."""
+    return typer.Option(None, help=POLICY_HELP)
+
+
+def zeta_option():
+    """``--zeta`` (default continuous)."""
+    return typer.Option("continuous", help=ZETA_HELP)
+
+
+def controllers_help() -> str:
+    """``--controller`` help (the registry is not imported here: it loads jax, and ``--help`` stays fast)."""
+    return "Controllers, comma-separated: smc, rl, hybrid or another name in harv_jax.control.registry."
+
+
+def command_line() -> str:
+    """The ``harv-jax …`` command being run (recorded in the JSON outputs)."""
+    return "harv-jax " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+
+
+def check_mc_options(runs: int, target_alpha: float, duration: float, chunk: int) -> None:
+    """One-line UsageErrors for out-of-range numeric flags of ``mc``, ``envelope`` and ``quickstart``."""
+    if not 1 <= runs <= MAX_RUNS:
+        raise UsageError(f"--runs {runs} must be in [1, {MAX_RUNS}]")
+    if not (math.isfinite(target_alpha) and ALPHA_MIN_RAD <= target_alpha <= ALPHA_MAX_RAD):
+        raise UsageError(
+            f"--target-alpha {target_alpha} rad is outside the envelope [{ALPHA_MIN_RAD}, {ALPHA_MAX_RAD}]"
+        )
+    if not (math.isfinite(duration) and 1.0 <= duration <= MAX_DURATION_S):
+        raise UsageError(f"--duration {duration} s must be in [1, {MAX_DURATION_S:g}]")
+    if chunk < 1:
+        raise UsageError(f"--chunk {chunk} must be >= 1")
+
+
+def check_fly_options(
+    controller: str, switching: str, target_alpha: float, duration: float, spin_s: float
+) -> None:
+    """UsageError (one line naming the value and what is allowed) for a bad ``fly``/``compare`` option."""
+    from harv_jax.control.registry import controller_names
+
+    names = controller_names()
+    if controller not in names:
+        raise UsageError(f"--controller {controller!r} is unknown; allowed: {', '.join(names)}")
+    if switching not in SWITCHING:
+        raise UsageError(f"--switching {switching!r} is unknown; allowed: {', '.join(SWITCHING)}")
+    lo, hi = ALPHA_MIN_RAD, ALPHA_MAX_RAD
+    if not (math.isfinite(target_alpha) and lo <= target_alpha <= hi):
+        raise UsageError(f"--target-alpha {target_alpha} rad is outside [{lo}, {hi}]")
+    if not (math.isfinite(duration) and 0 < duration <= MAX_DURATION_S):
+        raise UsageError(f"--duration {duration} must be in (0, {MAX_DURATION_S:g}] s")
+    if round(duration / DT_S) < 2:
+        raise UsageError(f"--duration {duration} s is shorter than two steps of {DT_S} s")
+    if not (math.isfinite(spin_s) and 0 <= spin_s <= MAX_DURATION_S):
+        raise UsageError(f"--spin-s {spin_s} must be in [0, {MAX_DURATION_S:g}] s")
+
+
+def validate_state(state: dict[str, float]) -> None:
+    """Raise UsageError for a physically meaningless initial state (outside :data:`STATE_LIMITS`)."""
+    for name, v in state.items():
+        if name not in STATE_LIMITS:
+            continue
+        lo, hi, unit = STATE_LIMITS[name]
+        if not (math.isfinite(v) and lo <= v <= hi):
+            raise UsageError(f"state {name}={v} {unit} is outside the allowed [{lo:g}, {hi:g}] {unit}")
+
+
+def _read_state_raw(path: Path) -> dict:
+    text = path.read_text()
+    if path.suffix.lower() == ".json":
+        try:
+            raw = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise UsageError(f"state file {str(path)!r} is not valid JSON: {e.msg}") from None
+        if not isinstance(raw, dict):
+            raise UsageError(f"state file {str(path)!r} must hold a JSON object of name: value")
+        return raw
+    if path.suffix.lower() == ".csv":
+        lines = [ln for ln in text.splitlines() if ln.strip()]
+        if len(lines) < 2:
+            raise UsageError(f"state file {str(path)!r} needs a header row and a data row")
+        names = [s.strip() for s in lines[0].split(",")]
+        values = [s.strip() for s in lines[1].split(",")]
+        if len(values) != len(names):
+            raise UsageError(f"state file {str(path)!r}: {len(names)} header names but {len(values)} values")
+        return dict(zip(names, values, strict=True))
+    raise UsageError(f"state file {str(path)!r} must end in .json or .csv")
+
+
+def load_state_file(path: Path) -> dict[str, float]:
+    """Initial wind state from a JSON object or a CSV with a header row (first data row is used).
+
+    Required names: V, alpha, beta, p, q, r, mu, gamma (ft/s, rad, rad/s); optional chi (rad, 0) and
+    h (ft, 25,000). Extra columns (e.g. t, de in a ``harv-jax simulate`` trajectory.csv) are ignored.
+    """
+    if not path.is_file():
+        raise UsageError(
+            f"--scenario {str(path)!r} is neither {' nor '.join(SCENARIOS)} nor an existing file"
+        )
+    raw = _read_state_raw(path)
+    state = {"chi": 0.0, "h": H0_FT}
+    missing = [n for n in REQUIRED_STATE_NAMES if n not in raw]
+    if missing:
+        raise UsageError(
+            f"state file {str(path)!r} lacks {', '.join(missing)}; needs {', '.join(REQUIRED_STATE_NAMES)}"
+        )
+    for name in (*REQUIRED_STATE_NAMES, "chi", "h"):
+        if name not in raw:
+            continue
+        try:
+            v = float(raw[name])
+        except (TypeError, ValueError):
+            raise UsageError(f"state file {str(path)!r}: {name}={raw[name]!r} is not a number") from None
+        if not math.isfinite(v):
+            raise UsageError(f"state file {str(path)!r}: {name}={v} is not finite")
+        state[name] = v
+    validate_state(state)
+    if state["h"] <= 0:
+        raise UsageError(f"state file {str(path)!r}: h={state['h']} ft must be > 0")
+    return state

@@ -1,0 +1,153 @@
+"""The one table of controllers: name -> builder and the options it reads.
+
+Every command that flies a controller by name (``fly``, ``mc``, ``compare``, ``envelope``, ``quickstart``)
+looks it up here. Adding a controller is one module with a ``make_*(…) -> Controller`` factory plus one
+line in :data:`CONTROLLERS` (or one :func:`register` call from outside the package, as the tests do)::
+
+    register("toy", lambda opts: make_toy(), options=(), help="constant deflection")
+
+A builder takes the :class:`ControllerOptions` of the command line and returns a
+``Controller(init, apply)`` (``harv_jax.control.base``); ``options`` names the fields it reads, so the
+commands know whether a run needs a policy (``"policy"``) or a zeta schedule (``"zeta"``) and record them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Iterable
+
+from harv_jax.control.base import Controller
+from harv_jax.errors import UsageError
+
+#: Option names a builder may read (fields of ControllerOptions).
+OPTION_NAMES = ("policy", "zeta", "switching")
+
+
+@dataclasses.dataclass(frozen=True)
+class ControllerOptions:
+    """The command-line options a controller builder may read (hashable: builders may be cached on it).
+
+    Attributes:
+        policy: rl/hybrid policy spec (``harv_jax.policy.resolve_policy``; None: the shipped default).
+        zeta: the hybrid's zeta schedule (``harv_jax.control.hybrid.ZETA_SCHEDULES``).
+        switching: the SMC's switching law, ``"sat"`` (boundary layer) or ``"sign"`` (the paper's).
+    """
+
+    policy: str | None = None
+    zeta: str = "continuous"
+    switching: str = "sat"
+
+
+@dataclasses.dataclass(frozen=True)
+class ControllerEntry:
+    """One row of the table.
+
+    Attributes:
+        build: ControllerOptions -> Controller; raises UsageError for a bad option value.
+        options: the ControllerOptions fields ``build`` reads (subset of OPTION_NAMES).
+        help: one line for the command-line help.
+    """
+
+    build: Callable[[ControllerOptions], Controller]
+    options: tuple[str, ...] = ()
+    help: str = ""
+
+
+def _build_smc(opts: ControllerOptions) -> Controller:
+    from harv_jax.control.smc import SMCConfig, make_smc
+
+    return make_smc(SMCConfig(switching=opts.switching))
+
+
+def _policy_act(policy: str | None) -> Callable:
+    """The deterministic action of the policy at ``policy``; UsageError if its sizes do not fit."""
+    from harv_jax.env.config import ACTION_SIZE, OBSERVATION_SIZE
+    from harv_jax.policy import resolve_policy
+
+    pol = resolve_policy(policy)
+    sizes = (pol.networks.observation_size, pol.networks.action_size)
+    if sizes != (OBSERVATION_SIZE, ACTION_SIZE):
+        raise UsageError(
+            f"--policy {policy!r} maps {sizes[0]} observations to {sizes[1]} actions; this aircraft's "
+            f"controller needs {OBSERVATION_SIZE} -> {ACTION_SIZE}"
+        )
+    return pol.deterministic
+
+
+def _build_rl(opts: ControllerOptions) -> Controller:
+    from harv_jax.control.rl import make_rl_controller
+
+    return make_rl_controller(_policy_act(opts.policy))
+
+
+def _build_hybrid(opts: ControllerOptions) -> Controller:
+    from harv_jax.control.hybrid import ZETA_SCHEDULES, HybridConfig, make_hybrid
+
+    act = _policy_act(opts.policy)
+    if opts.zeta not in ZETA_SCHEDULES:
+        raise UsageError(f"--zeta {opts.zeta!r} is unknown; allowed: {', '.join(ZETA_SCHEDULES)}")
+    return make_hybrid(act, HybridConfig(schedule=opts.zeta))
+
+
+#: The controllers, in help order.
+CONTROLLERS: dict[str, ControllerEntry] = {
+    "smc": ControllerEntry(_build_smc, ("switching",), "sliding-mode control (harv_jax.control.smc)"),
+    "rl": ControllerEntry(_build_rl, ("policy",), "the learned policy alone (harv_jax.control.rl)"),
+    "hybrid": ControllerEntry(
+        _build_hybrid,
+        ("policy", "zeta"),
+        "policy + SMC feedback, scheduled by zeta (harv_jax.control.hybrid)",
+    ),
+}
+
+
+def register(
+    name: str,
+    build: Callable[[ControllerOptions], Controller],
+    options: Iterable[str] = (),
+    help: str = "",
+) -> None:
+    """Add a controller to :data:`CONTROLLERS` (ValueError if the name is taken or an option unknown)."""
+    if name in CONTROLLERS:
+        raise ValueError(f"controller {name!r} is already registered")
+    options = tuple(options)
+    unknown = [o for o in options if o not in OPTION_NAMES]
+    if unknown or not name or "," in name:
+        raise ValueError(
+            f"controller {name!r}: bad name or unknown options {unknown}; allowed {OPTION_NAMES}"
+        )
+    CONTROLLERS[name] = ControllerEntry(build, options, help)
+
+
+def controller_names() -> tuple[str, ...]:
+    """The registered names, in table order."""
+    return tuple(CONTROLLERS)
+
+
+def _unknown(name: str) -> UsageError:
+    return UsageError(f"unknown controller {name!r}; allowed: {', '.join(CONTROLLERS)}")
+
+
+def build_controller(name: str, options: ControllerOptions | None = None) -> Controller:
+    """The controller ``name`` built with ``options``; UsageError for an unknown name or bad option."""
+    if name not in CONTROLLERS:
+        raise _unknown(name)
+    return CONTROLLERS[name].build(options or ControllerOptions())
+
+
+def uses_option(names: Iterable[str], option: str) -> bool:
+    """Whether any of the controllers ``names`` reads ``option`` (e.g. ``"policy"``)."""
+    return any(option in CONTROLLERS[n].options for n in names if n in CONTROLLERS)
+
+
+def parse_controllers(text: str) -> list[str]:
+    """Comma-separated controller names -> list; UsageError on unknown or duplicate names."""
+    names = [c.strip() for c in text.split(",") if c.strip()]
+    if not names:
+        raise UsageError(f"--controller {text!r} names no controller; allowed: {', '.join(CONTROLLERS)}")
+    for c in names:
+        if c not in CONTROLLERS:
+            raise _unknown(c)
+    if len(set(names)) != len(names):
+        raise UsageError(f"--controller {text!r} names a controller twice")
+    return names

@@ -1,0 +1,201 @@
+"""Controllers compared on the spin scenario and a fixed upset state (``harv-jax compare``).
+
+For each scenario every controller flies from the same state (:func:`harv_jax.evaluation.flight.fly`);
+:func:`compare` returns a :class:`Comparison` with one metrics row per scenario and controller
+(``summary.COMPARE_COLUMNS``); :func:`write_comparison` writes the overlaid time histories in the paper's
+four-figure layout, the metrics table (Markdown + CSV) and ``compare.json``.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from harv_jax.evaluation.flight import FlightResult, fly
+from harv_jax.evaluation.summary import COMPARE_COLUMNS, controllers_setting
+from harv_jax.numfmt import fmt_num, write_json
+from harv_jax.task.spec import DT_S, H0_FT
+
+#: Fixed upset state of the second scenario (wind axes; ft/s, rad, rad/s, ft): a nose-high (alpha 46 deg),
+#: rolling, yawing, banked upset inside the paper's reset bounds.
+FIXED_STATE = {"V": 600.0, "alpha": 0.8, "beta": 0.15, "p": 1.0, "q": 0.4, "r": 0.4, "mu": 0.6,
+               "gamma": 0.3, "chi": 0.0, "h": H0_FT}  # fmt: skip
+OMEGA_SETTLE_RADPS = 0.17
+
+
+def omega_settling_time_s(
+    t_s: np.ndarray, x_wind: np.ndarray, tol: float = OMEGA_SETTLE_RADPS
+) -> float | None:
+    """First time from which ||(p, q, r)|| < tol holds to the end (None if it never settles)."""
+    ok = np.linalg.norm(x_wind[:, 3:6], axis=1) < tol
+    if not ok[-1]:
+        return None
+    bad = np.flatnonzero(~ok)
+    return float(t_s[bad[-1] + 1] if bad.size else t_s[0])
+
+
+def row_of(scenario: str, controller: str, res: FlightResult) -> dict[str, Any]:
+    """The metrics-table row of one flight (times from engagement)."""
+    m = res.metrics
+    n_pre = int(round(res.t_engage_s / (res.t_s[1] - res.t_s[0]))) if len(res.t_s) > 1 else 0
+    t = res.t_s[n_pre:] - res.t_engage_s
+    hy = res.hybrid
+    zeta_frac = fallbacks = None
+    if hy is not None:
+        z = hy["zeta"][n_pre:]
+        fb = hy["fallback"][n_pre:].astype(bool)
+        zeta_frac = float(np.mean(z))
+        fallbacks = int(np.sum(fb[1:] & ~fb[:-1]) + fb[0])
+    return {
+        "scenario": scenario,
+        "controller": controller,
+        "outcome": m["outcome_name"],
+        "recovery_time_s": m["t_recover_s"],
+        "alpha_overshoot_deg": None
+        if m["overshoot_rad"][0] is None
+        else float(np.degrees(m["overshoot_rad"][0])),
+        "omega_settling_time_s": omega_settling_time_s(t, res.x_wind[n_pre:]),
+        "altitude_loss_ft": m["altitude_loss_ft"],
+        "control_tv_rad": float(np.nansum(m["control_tv_rad"])),
+        "chatter_index_rad2": float(np.nansum(m["chatter_index_rad2"])),
+        "constraint_violations": int(bool(m["left_envelope"])) + int(bool(m["hit_ground"])),
+        "rate_saturation_fraction": float(np.mean(m["sat_rate_fraction"])),
+        "zeta_active_fraction": zeta_frac,
+        "supervisor_fallbacks": fallbacks,
+    }
+
+
+@dataclasses.dataclass(frozen=True)
+class Comparison:
+    """The flights of a comparison and their metrics.
+
+    Attributes:
+        flights: scenario -> controller -> FlightResult.
+        rows: one metrics row (COMPARE_COLUMNS) per scenario and controller.
+        certificates: ``"<scenario>/<controller>"`` -> the flight's certificate (controllers that have one).
+        h0_ft: scenario -> initial altitude, ft.
+        settings: the run's settings (the top of compare.json).
+    """
+
+    flights: dict[str, dict[str, FlightResult]]
+    rows: list[dict[str, Any]]
+    certificates: dict[str, dict]
+    h0_ft: dict[str, float]
+    settings: dict[str, Any]
+
+
+def compare(
+    controllers: list[str],
+    policy: str | None,
+    zeta: str,
+    target_alpha_rad: float,
+    duration_s: float,
+    spin_s: float,
+    fixed_state: dict[str, float],
+    seed: int,
+    progress: Callable[[str], None] | None = None,
+) -> Comparison:
+    """Fly every controller on the spin and from ``fixed_state`` (a wind state by name); no files."""
+    say = progress or (lambda _msg: None)
+    flights: dict[str, dict[str, FlightResult]] = {}
+    rows: list[dict[str, Any]] = []
+    certificates: dict[str, dict] = {}
+    h0_ft: dict[str, float] = {}
+    for scen, arg in (("spin", "spin"), ("fixed", fixed_state)):
+        flights[scen] = {}
+        for name in controllers:
+            say(f"[compare] {scen}: {name} ...")
+            res = fly(arg, target_alpha_rad, duration_s, seed, "sat", spin_s, name, policy, zeta)
+            flights[scen][name] = res
+            rows.append(row_of(scen, name, res))
+            if res.certificate is not None:
+                certificates[f"{scen}/{name}"] = res.certificate
+            h0_ft[scen] = float(res.x_wind[0, 9])
+            say(
+                f"[compare]     outcome {rows[-1]['outcome']}, recovery time "
+                f"{fmt_num(rows[-1]['recovery_time_s'], unit='s', missing='- (not recovered)')}"
+            )
+    settings = {
+        "controllers": controllers, "policy": controllers_setting(controllers, policy, zeta)["policy"],
+        "zeta_schedule": zeta, "h0_ft": h0_ft,
+        "target_alpha_rad": target_alpha_rad, "duration_s": duration_s, "spin_s": spin_s, "seed": seed,
+        "dt_s": DT_S, "fixed_state": fixed_state,
+    }  # fmt: skip
+    return Comparison(flights, rows, certificates, h0_ft, settings)
+
+
+def _fmt(v: Any) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def write_tables(out_dir: Path, rows: list[dict], setting: str = "") -> None:
+    """compare_metrics.csv and compare_metrics.md (``setting``: a sentence naming the policy, references
+    and h0, printed above the table)."""
+    with (out_dir / "compare_metrics.csv").open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=COMPARE_COLUMNS)
+        w.writeheader()
+        w.writerows([{k: ("" if r[k] is None else r[k]) for k in COMPARE_COLUMNS} for r in rows])
+    lines = ([setting, ""] if setting else []) + [
+        "| " + " | ".join(COMPARE_COLUMNS) + " |",
+        "|" + "---|" * len(COMPARE_COLUMNS),
+    ]
+    lines += ["| " + " | ".join(_fmt(r[k]) for k in COMPARE_COLUMNS) + " |" for r in rows]
+    notes = (
+        "\nTimes are from controller engagement. constraint_violations counts leaving the flight envelope "
+        "and hitting the ground (0-2); omega settling: ||(p, q, r)|| < 0.17 rad/s to the end; TV and chatter "
+        "are summed over the three surfaces; supervisor_fallbacks counts entries into SMC-only mode.\n"
+    )
+    (out_dir / "compare_metrics.md").write_text("\n".join(lines) + "\n" + notes)
+
+
+def write_comparison(out_dir: Path, comp: Comparison, command: str) -> None:
+    """fixed_state.json, <scenario>_trajectories.png (and <scenario>_hybrid.png), compare_metrics.md/.csv
+    and compare.json (``command``: the command line recorded in it)."""
+    from harv_jax.dynamics import CONTROL_NAMES, WIND_STATE_NAMES
+    from harv_jax.plots.flight import plot_hybrid
+    from harv_jax.plots.time_histories import plot_time_histories
+
+    s = comp.settings
+    (out_dir / "fixed_state.json").write_text(json.dumps(s["fixed_state"], indent=2) + "\n")
+    target_alpha, policy_name = s["target_alpha_rad"], s["policy"]
+    learned = policy_name is not None
+    for scen, flights in comp.flights.items():
+        runs = {}
+        res = t_engage = None
+        for name, res in flights.items():
+            cols = {n: res.x_wind[:, i] for i, n in enumerate(WIND_STATE_NAMES)}
+            cols.update({n: res.delta_rad[:, i] for i, n in enumerate(CONTROL_NAMES)})
+            runs[name] = cols
+            t_engage = res.t_engage_s
+            if res.hybrid is not None:
+                plot_hybrid(res.t_s, res.hybrid, out_dir / f"{scen}_hybrid.png", t_engage, res.u_cmd_rad)
+        plot_time_histories(
+            res.t_s, runs, out_dir / f"{scen}_trajectories.png",
+            title=f"{scen}: {' vs '.join(flights)} (alpha_d = {np.degrees(target_alpha):.1f} deg"
+            + (f", policy {policy_name}" if learned else "") + ")",
+            references={"alpha": target_alpha, "beta": 0.0, "mu": 0.0},
+            t_marker_s=t_engage if t_engage else None,
+        )  # fmt: skip
+    h0_ft = comp.h0_ft
+    zeta, spin_s = s["zeta_schedule"], s["spin_s"]
+    setting = (
+        (f"Policy of rl and hybrid: {policy_name}; hybrid zeta schedule: {zeta}. " if learned else "")
+        + f"alpha_d = {np.degrees(target_alpha):.1f} deg ({target_alpha:g} rad), beta_d = mu_d = 0; initial "
+        + "altitude h0: "
+        + ", ".join(f"{sc} {h:,.0f} ft" for sc, h in h0_ft.items())
+        + (f" (the spin starts at h0 and is held {spin_s:g} s before engagement)" if "spin" in h0_ft else "")
+        + "."
+    )
+    write_tables(out_dir, comp.rows, setting)
+    doc = {"command": command, **s, "rows": comp.rows, "certificates": comp.certificates}
+    write_json(out_dir / "compare.json", doc)

@@ -1,0 +1,160 @@
+"""A Monte Carlo study of registered controllers (``harv-jax mc``): run, summarize, write its folder.
+
+:func:`monte_carlo` flies every controller on the same sampled aircraft and initial states
+(``monte_carlo.sample_mc_inputs``, common random numbers) and returns a :class:`MonteCarloStudy`;
+:func:`write_monte_carlo` writes summary.json, the band figures and CSVs, terminal_errors.png and runs.csv.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from harv_jax.evaluation.monte_carlo import MCRunOutput
+from harv_jax.task.spec import DT_S, H0_FT
+
+
+@dataclasses.dataclass(frozen=True)
+class MonteCarloStudy:
+    """The outcome of :func:`monte_carlo`.
+
+    Attributes:
+        summary: the summary.json document (``harv_jax.evaluation.summary.mc_summary``).
+        outputs: controller -> per-run MCRunOutput (numpy leaves, leading axis: run).
+        x0_wind: [N, 10] the sampled initial wind states.
+        t_record_s: [T_rec] times of the decimated histories, s.
+        reference_rad: [3] alpha_d, beta_d, mu_d.
+    """
+
+    summary: dict[str, Any]
+    outputs: dict[str, MCRunOutput]
+    x0_wind: np.ndarray
+    t_record_s: np.ndarray
+    reference_rad: np.ndarray
+
+
+def monte_carlo(
+    controllers: list[str],
+    policy: str | None,
+    runs: int,
+    target_alpha_rad: float,
+    duration_s: float,
+    seed: int,
+    randomize: bool,
+    chunk: int = 250,
+    record_every: int = 10,
+    zeta: str = "continuous",
+    command: str = "",
+    progress: Callable[[str], None] | None = None,
+) -> MonteCarloStudy:
+    """Fly every controller (names of ``harv_jax.control.registry``) on ``runs`` sampled runs (no files)."""
+    import jax
+    import jax.numpy as jnp
+
+    from harv_jax.aircraft import harv
+    from harv_jax.control.registry import ControllerOptions, build_controller
+    from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+    from harv_jax.evaluation.summary import mc_summary, summarize_controller
+
+    say = progress or (lambda _msg: None)
+    options = ControllerOptions(policy=policy, zeta=zeta)
+    ctrls = {name: build_controller(name, options) for name in controllers}
+    n_steps = int(round(duration_s / DT_S))
+    n_steps -= n_steps % record_every
+    reference = jnp.array([target_alpha_rad, 0.0, 0.0])
+    inputs = sample_mc_inputs(jax.random.key(seed), runs, harv(), randomize=randomize, h0_ft=H0_FT)
+    summary = mc_summary(
+        controllers, policy, zeta, runs, target_alpha_rad, n_steps * DT_S, seed, randomize, DT_S, H0_FT,
+        [str(d) for d in jax.local_devices()], command,
+    )  # fmt: skip
+    outs = {}
+    for name, ctrl in ctrls.items():
+        say(f"[mc] {name}: {runs} runs x {n_steps} steps ...")
+        out, wall = run_mc(ctrl, inputs, reference, n_steps, DT_S, record_every, chunk)
+        outs[name] = out
+        s = summary["controllers"][name] = summarize_controller(out, wall, n_steps)
+        say(
+            f"[mc] {name}: recovery {s['recovery_rate']:.3f}, outcomes {s['outcomes']}, "
+            f"compile {wall['compile']:.1f} s, run {wall['run']:.1f} s"
+        )
+    n_rec = next(iter(outs.values())).history.shape[1]
+    t_rec = np.arange(n_rec) * record_every * DT_S
+    return MonteCarloStudy(summary, outs, np.asarray(inputs.x0_wind), t_rec, np.asarray(reference))
+
+
+def write_runs_csv(path: Path, x0: np.ndarray, outs: dict[str, MCRunOutput]) -> None:
+    """One row per (controller, run): initial state, outcome, metrics."""
+    from harv_jax.dynamics import WIND_STATE_NAMES
+    from harv_jax.evaluation.metrics import OUTCOME_NAMES
+
+    header = ["controller", "run"] + [f"{n}0" for n in WIND_STATE_NAMES] + [
+        "outcome", "recovered", "t_recover_s", "terminal_alpha_err_deg", "terminal_beta_err_deg",
+        "terminal_mu_err_deg", "altitude_loss_ft", "control_tv_rad", "chatter_index_rad2",
+        "sat_position_fraction", "left_envelope",
+    ]  # fmt: skip
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        for name, out in outs.items():
+            m = out.metrics
+            term = np.degrees(out.terminal_error_rad)
+            for i in range(x0.shape[0]):
+                w.writerow(
+                    [
+                        name,
+                        i,
+                        *[f"{v:.6g}" for v in x0[i]],
+                        OUTCOME_NAMES[int(m.outcome[i])],
+                        bool(m.recovered[i]),
+                        f"{m.t_recover_s[i]:.4g}",
+                        *[f"{v:.5g}" for v in term[i]],
+                        f"{m.altitude_loss_ft[i]:.5g}",
+                        f"{np.sum(m.control_tv_rad[i]):.5g}",
+                        f"{np.sum(m.chatter_index_rad2[i]):.4g}",
+                        f"{np.mean(m.sat_position_fraction[i]):.4g}",
+                        bool(m.left_envelope[i]),
+                    ]
+                )
+
+
+def write_monte_carlo(out_dir: Path, study: MonteCarloStudy, save_trajectories: bool = False) -> None:
+    """summary.json, bands_*.png/.csv (bands_all.png: every controller on one figure; all band plots share
+    one y-scale per variable), terminal_errors.png, runs.csv (and trajectories_*.npz: t_s [T],
+    alpha_beta_mu_rad [N, T, 3] every ``record_every`` steps, if asked)."""
+    from harv_jax.numfmt import write_json
+    from harv_jax.plots.mc import (
+        band_limits_deg,
+        plot_mc_bands,
+        plot_mc_bands_overlay,
+        plot_terminal_errors,
+        write_bands_csv,
+    )
+
+    t_rec, outs, ref = study.t_record_s, study.outputs, study.reference_rad
+    for name, out in outs.items():
+        write_bands_csv(t_rec, out.history, out_dir / f"bands_{name}.csv")
+        if save_trajectories:
+            np.savez_compressed(
+                out_dir / f"trajectories_{name}.npz", t_s=t_rec, alpha_beta_mu_rad=out.history
+            )
+    histories = {n: o.history for n, o in outs.items()}
+    lims = band_limits_deg(histories, ref)  # one y-scale per variable across controllers
+    s = study.summary
+    alpha_deg = np.degrees(s["target_alpha_rad"])
+    setting = f"N = {s['runs']}, alpha_d = {alpha_deg:.1f} deg, h0 = {s['h0_ft']:,.0f} ft"
+    for name, h in histories.items():
+        plot_mc_bands(t_rec, h, ref, out_dir / f"bands_{name}.png",
+                      title=f"{name}: Monte Carlo bands ({setting})", ylims_deg=lims)  # fmt: skip
+    if len(histories) > 1:
+        plot_mc_bands_overlay(t_rec, histories, ref, out_dir / "bands_all.png",
+                              title=f"{', '.join(histories)}: Monte Carlo bands ({setting})")  # fmt: skip
+    plot_terminal_errors(
+        {n: np.degrees(o.terminal_error_rad) for n, o in outs.items()}, out_dir / "terminal_errors.png"
+    )
+    write_runs_csv(out_dir / "runs.csv", study.x0_wind, outs)
+    write_json(out_dir / "summary.json", s)

@@ -1,0 +1,353 @@
+"""The layout of every summary the commands write, owned here: the writers and ``harv_jax.report`` read it.
+
+- ``summary.json`` of ``harv-jax mc``: :func:`mc_summary` with one :func:`summarize_controller` block
+  per controller;
+- ``envelope.json`` of ``harv-jax envelope``: :func:`envelope_summary` with :func:`summarize_envelope`
+  blocks;
+- ``metrics.json`` of ``harv-jax fly``: :func:`flight_summary` (settings :data:`FLY_SETTING_KEYS` and the
+  run's :func:`metrics_to_dict`);
+- ``compare.json`` / ``compare_metrics.csv`` of ``harv-jax compare``: rows with :data:`COMPARE_COLUMNS`.
+
+The report's tables (label, key path, format) are the ``*_ROWS`` below, next to the keys they read. One
+name per quantity: the fraction of runs recovered is ``recovery_rate`` (:data:`RECOVERY_RATE`) everywhere.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from harv_jax.evaluation.metrics import OUTCOME_NAMES, RunMetrics
+from harv_jax.evaluation.monte_carlo import MCRunOutput, gate_summary
+
+#: Key of the fraction of runs recovered, in every summary.
+RECOVERY_RATE = "recovery_rate"
+
+# ----------------------------------------------------------------------------------------------------
+# Per-controller blocks.
+
+
+def _pct(a: np.ndarray, q: float) -> float | None:
+    return float(np.percentile(a, q)) if a.size else None
+
+
+def _by_channel(per_run: Any) -> dict[str, float]:
+    """Mean over runs of a per-channel [N, 3] metric, keyed by surface."""
+    means = np.mean(np.asarray(per_run, np.float64), axis=0)
+    return {name: float(v) for name, v in zip(("elevator", "aileron", "rudder"), means, strict=True)}
+
+
+def summarize_controller(
+    out: MCRunOutput, wall: dict[str, float], n_steps: int | None = None
+) -> dict[str, Any]:
+    """The per-controller block of ``summary.json`` (names relied on by users' scripts).
+
+    ``n_steps`` (steps per run) turns the hybrid's per-step flags into counts per run.
+    """
+    m = out.metrics
+    outcome = np.asarray(m.outcome)
+    n = int(outcome.size)
+    rec = np.asarray(m.recovered)
+    t_rec = np.asarray(m.t_recover_s)[rec]
+    t_alpha = np.asarray(m.t_recover_alpha_s, dtype=float)
+    term_deg = np.degrees(np.asarray(out.terminal_error_rad))
+    term = {}
+    for i, name in enumerate(("alpha", "beta", "mu")):
+        e = term_deg[:, i]
+        e = e[np.isfinite(e)]
+        term[name] = {
+            "mean": float(e.mean()) if e.size else None,
+            "std": float(e.std()) if e.size else None,
+            "p5": _pct(e, 5),
+            "p50": _pct(e, 50),
+            "p95": _pct(e, 95),
+            "within_0p5": float(np.mean(np.abs(term_deg[:, i]) <= 0.5)),
+            "within_2": float(np.mean(np.abs(term_deg[:, i]) <= 2.0)),
+        }
+    counts = {name: int((outcome == code).sum()) for code, name in enumerate(OUTCOME_NAMES)}
+    info = out.info_means
+
+    def per_run(key: str) -> float | None:
+        """Mean over runs of the per-run count (n_steps given) or step fraction of a per-step flag."""
+        if key not in info:
+            return None
+        return float(np.mean(info[key]) * (n_steps if n_steps else 1))
+
+    hybrid = {
+        "zeta_active_fraction": float(np.mean(info["zeta"])) if "zeta" in info else None,
+        "zeta_switches_per_run": per_run("zeta_switched"),
+        "fallback_fraction": float(np.mean(info["fallback"])) if "fallback" in info else None,
+        "fallbacks_per_run": per_run("fallback_entered"),
+        **gate_summary(info),
+    }
+    return {
+        RECOVERY_RATE: float(rec.mean()) if n else None,
+        "recovery_time_s": {
+            "mean": float(t_rec.mean()) if t_rec.size else None,
+            "p50": _pct(t_rec, 50),
+            "p95": _pct(t_rec, 95),
+        },
+        "alpha_recovery_time_s": {  # |e_alpha| < 2 deg and ||omega|| < 0.17 rad/s from then on
+            "fraction": float(np.mean(np.isfinite(t_alpha))),
+            "p50": _pct(t_alpha[np.isfinite(t_alpha)], 50),
+            "p95": _pct(t_alpha[np.isfinite(t_alpha)], 95),
+        },
+        "terminal_error_deg": term,
+        "altitude_loss_ft": {
+            "mean": float(np.mean(m.altitude_loss_ft)),
+            "p95": _pct(np.asarray(m.altitude_loss_ft), 95),
+        },
+        "control_tv": {
+            "mean": float(np.mean(np.sum(m.control_tv_rad, axis=-1))),
+            "by_channel": _by_channel(m.control_tv_rad),
+            "unit": "rad",
+        },
+        "chatter_index": {
+            "mean": float(np.mean(np.sum(m.chatter_index_rad2, axis=-1))),
+            "by_channel": _by_channel(m.chatter_index_rad2),
+            "unit": "rad^2",
+        },
+        "saturation_fraction": float(np.mean(m.sat_position_fraction)),
+        "rate_saturation_fraction": float(np.mean(m.sat_rate_fraction)),
+        "safety_interventions": per_run("intervened") or 0.0,
+        "safety_interventions_unit": "steps with an intervention per run" if n_steps else "step fraction",
+        "hybrid": hybrid,
+        "outcomes": {
+            "recovered": counts["RECOVERED"],
+            "departed": counts["DEPARTED"] + counts["GROUND_HIT"],
+            "nonfinite": counts["NONFINITE"],
+            "timeout": counts["TIMEOUT"],
+        },
+        "ground_hits_in_departed": counts["GROUND_HIT"],
+        "left_envelope_fraction": float(np.mean(m.left_envelope)),
+        "wall_time_s": {"compile": wall["compile"], "run": wall["run"]},
+    }
+
+
+def summarize_envelope(
+    out: MCRunOutput, wall: dict[str, float], n_steps: int | None = None
+) -> dict[str, Any]:
+    """Per-controller block of ``envelope.json``: ``recovery_rate``, counts of every ``Outcome``
+    (``outcome_counts``) and the Monte Carlo block of ``summarize_controller`` (recovery time, terminal
+    errors, altitude loss, control activity, wall times); ``n_steps``: steps per run."""
+    outcome = np.asarray(out.metrics.outcome)
+    block = summarize_controller(out, wall, n_steps)
+    return {
+        RECOVERY_RATE: block[RECOVERY_RATE],
+        "outcome_counts": {name: int((outcome == code).sum()) for code, name in enumerate(OUTCOME_NAMES)},
+        **block,
+    }
+
+
+def metrics_to_dict(m: RunMetrics) -> dict[str, Any]:
+    """One run's metrics as JSON-ready Python values (NaN -> None; ``outcome`` is the name, e.g.
+    ``RECOVERED``, ``outcome_code`` the ``Outcome`` integer)."""
+
+    def conv(v):
+        a = np.asarray(v)
+        if a.dtype == bool:
+            return a.tolist()
+        if np.issubdtype(a.dtype, np.integer):
+            return a.tolist()
+        a = a.astype(float)
+        if a.ndim == 0:
+            return None if not np.isfinite(a) else float(a)
+        return [None if not np.isfinite(z) else float(z) for z in a.ravel()]
+
+    out = {k: conv(getattr(m, k)) for k in m.__dataclass_fields__}
+    code = int(np.asarray(m.outcome))
+    out["outcome"] = OUTCOME_NAMES[code]
+    out["outcome_code"] = code
+    out["outcome_name"] = OUTCOME_NAMES[code]  # older readers
+    return out
+
+
+def summarize(m: RunMetrics) -> Mapping[str, Any]:
+    """Host-side summary of a batch of runs (leading axis): outcome counts, recovery rate and
+    recovery-time percentiles (recovered runs only)."""
+    outcome = np.asarray(m.outcome)
+    n = int(outcome.shape[0])
+    rec = np.asarray(m.recovered)
+    t_rec = np.asarray(m.t_recover_s)[rec]
+    pct = (5, 25, 50, 75, 95, 100)
+    return {
+        "n_runs": n,
+        RECOVERY_RATE: float(rec.mean()) if n else float("nan"),
+        "outcome_counts": {name: int((outcome == code).sum()) for code, name in enumerate(OUTCOME_NAMES)},
+        "recovered_and_in_envelope_fraction": float((rec & ~np.asarray(m.left_envelope)).mean()),
+        "t_recover_s_percentiles": (
+            {f"p{p}": float(np.percentile(t_rec, p)) for p in pct} if t_rec.size else {}
+        ),
+        "t_recover_s_mean": float(t_rec.mean()) if t_rec.size else None,
+    }
+
+
+# ----------------------------------------------------------------------------------------------------
+# Documents: the top level of each JSON file.
+
+
+def controllers_setting(names: list[str], policy: str | None, zeta: str) -> dict[str, Any]:
+    """``policy`` and ``zeta_schedule`` of a summary: recorded only when a controller reads them."""
+    from harv_jax.control.registry import uses_option
+    from harv_jax.policies import DEFAULT_POLICY_SPEC
+
+    return {
+        "policy": (policy or DEFAULT_POLICY_SPEC) if uses_option(names, "policy") else None,
+        "zeta_schedule": zeta if uses_option(names, "zeta") else None,
+    }
+
+
+def mc_summary(
+    names: list[str],
+    policy: str | None,
+    zeta: str,
+    runs: int,
+    target_alpha_rad: float,
+    duration_s: float,
+    seed: int,
+    randomize: bool,
+    dt_s: float,
+    h0_ft: float,
+    devices: list[str],
+    command: str,
+) -> dict[str, Any]:
+    """The settings of a ``summary.json`` (``"controllers"``: empty, one block per controller to add)."""
+    return {
+        "runs": runs, "target_alpha_rad": target_alpha_rad, "duration_s": duration_s, "seed": seed,
+        "randomize": randomize, "dt_s": dt_s, "h0_ft": h0_ft, **controllers_setting(names, policy, zeta),
+        "devices": devices, "command": command, "controllers": {},
+    }  # fmt: skip
+
+
+def envelope_summary(
+    names: list[str],
+    policy: str | None,
+    zeta: str,
+    grid: dict[str, Any],
+    runs_per_controller: int,
+    target_alpha_rad: float,
+    duration_s: float,
+    dt_s: float,
+    seed: int,
+    devices: list[str],
+    command: str,
+) -> dict[str, Any]:
+    """The settings of an ``envelope.json`` (``"controllers"``: empty, one block per controller to add)."""
+    setting = controllers_setting(names, policy, zeta)
+    return {
+        "grid": grid, "runs_per_controller": runs_per_controller, "target_alpha_rad": target_alpha_rad,
+        "reference_rad": [target_alpha_rad, 0.0, 0.0], "duration_s": duration_s, "dt_s": dt_s, "seed": seed,
+        "aircraft": "nominal", "devices": devices, "policy": setting["policy"],
+        "zeta_schedule": setting["zeta_schedule"], "command": command, "controllers": {},
+    }  # fmt: skip
+
+
+def flight_settings(
+    controller: str,
+    policy: str | None,
+    zeta: str,
+    switching: str,
+    scenario: str,
+    seed: int,
+    duration_s: float,
+    dt_s: float,
+    target_alpha_rad: float,
+    spin_s: float,
+) -> dict[str, Any]:
+    """The settings block of a fly ``metrics.json``."""
+    setting = controllers_setting([controller], policy, zeta)
+    return {
+        "controller": controller, "policy": setting["policy"], "zeta_schedule": setting["zeta_schedule"],
+        "switching": switching, "scenario": scenario, "seed": seed, "duration_s": duration_s, "dt_s": dt_s,
+        "reference_rad": [target_alpha_rad, 0.0, 0.0], "spin_s": spin_s if scenario == "spin" else None,
+    }  # fmt: skip
+
+
+def flight_summary(
+    settings: dict[str, Any],
+    t_engage_s: float,
+    initial_state: dict[str, float],
+    spin_check: dict | None,
+    metrics: dict[str, Any],
+    certificate: dict | None,
+) -> dict[str, Any]:
+    """A fly ``metrics.json``: the settings, then the run's engagement time, state, spin check and metrics."""
+    return {
+        **settings, "t_engage_s": t_engage_s, "initial_state": initial_state, "spin_check": spin_check,
+        "metrics": metrics, "certificate": certificate,
+    }  # fmt: skip
+
+
+#: Settings of a fly metrics.json shown by the report (in this order).
+FLY_SETTING_KEYS = ("controller", "scenario", "switching", "seed", "duration_s", "dt_s", "reference_rad",
+                    "spin_s", "t_engage_s")  # fmt: skip
+
+#: Columns of the compare metrics table (compare_metrics.csv/.md and compare.json's rows).
+COMPARE_COLUMNS = (
+    "scenario", "controller", "outcome", "recovery_time_s", "alpha_overshoot_deg", "omega_settling_time_s",
+    "altitude_loss_ft", "control_tv_rad", "chatter_index_rad2", "constraint_violations",
+    "rate_saturation_fraction", "zeta_active_fraction", "supervisor_fallbacks",
+)  # fmt: skip
+
+# ----------------------------------------------------------------------------------------------------
+# The report's tables: (label, key path in a controller block, format).
+
+Row = tuple[str, tuple[str, ...], str]
+
+MC_RECOVERY_ROWS: tuple[Row, ...] = (
+    ("recovery rate", (RECOVERY_RATE,), "pct"),
+    ("recovery time mean [s]", ("recovery_time_s", "mean"), ".2f"),
+    ("recovery time p50 [s]", ("recovery_time_s", "p50"), ".2f"),
+    ("recovery time p95 [s]", ("recovery_time_s", "p95"), ".2f"),
+    ("altitude loss mean [ft]", ("altitude_loss_ft", "mean"), ",.0f"),
+    ("altitude loss p95 [ft]", ("altitude_loss_ft", "p95"), ",.0f"),
+    ("control total variation mean [rad]", ("control_tv", "mean"), ".3g"),
+    ("chatter index mean [rad²]", ("chatter_index", "mean"), ".3g"),
+    ("position saturation fraction", ("saturation_fraction",), ".3f"),
+    ("rate saturation fraction", ("rate_saturation_fraction",), ".3f"),
+    ("safety interventions", ("safety_interventions",), ".4g"),
+    ("left envelope (fraction of runs)", ("left_envelope_fraction",), ".3f"),
+)
+#: Hybrid diagnostics (present for every controller in newer summaries; '–' where not applicable).
+MC_HYBRID_ROWS: tuple[Row, ...] = (
+    ("ζ active (fraction of steps)", ("hybrid", "zeta_active_fraction"), ".3f"),
+    ("ζ switches per run", ("hybrid", "zeta_switches_per_run"), ".3g"),
+    ("supervisor fallback (fraction of steps)", ("hybrid", "fallback_fraction"), ".3f"),
+    ("supervisor fallbacks per run", ("hybrid", "fallbacks_per_run"), ".3g"),
+)
+MC_OUTCOME_ROWS: tuple[Row, ...] = tuple(
+    (name, ("outcomes", name), "int") for name in ("recovered", "departed", "nonfinite", "timeout")
+) + (("ground hits (in departed)", ("ground_hits_in_departed",), "int"),)
+WALL_ROWS: tuple[Row, ...] = (
+    ("compile [s]", ("wall_time_s", "compile"), ".1f"),
+    ("run [s]", ("wall_time_s", "run"), ".2f"),
+)
+_GREEK = {"alpha": "α", "beta": "β", "mu": "μ"}
+
+
+def terminal_rows() -> tuple[Row, ...]:
+    """Rows of the terminal-error table (format "p5/p50/p95" and "within" span several keys)."""
+    rows: list[Row] = []
+    for ch in ("alpha", "beta", "mu"):
+        g = _GREEK[ch]
+        base = ("terminal_error_deg", ch)
+        rows += [
+            (f"{g} mean", base + ("mean",), ".3f"),
+            (f"{g} std", base + ("std",), ".3f"),
+            (f"{g} p5 / p50 / p95", base, "p5/p50/p95"),
+            (f"{g} within 0.5° / 2°", base, "within"),
+        ]
+    return tuple(rows)
+
+
+def envelope_rows(outcome_codes: list[str]) -> tuple[Row, ...]:
+    """Rows of the envelope table for the outcome codes present."""
+    return (
+        ("recovery rate", (RECOVERY_RATE,), "pct"),
+        *((f"outcome {c.lower()}", ("outcome_counts", c), "int") for c in outcome_codes),
+        *MC_RECOVERY_ROWS[1:6],
+        *MC_HYBRID_ROWS,
+        *WALL_ROWS,
+    )

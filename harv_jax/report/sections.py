@@ -1,0 +1,165 @@
+"""The report's sections: tables of a ``harv-jax mc`` summary.json, an ``envelope`` envelope.json and a
+``fly`` metrics.json, read through the layout of ``harv_jax.evaluation.summary``."""
+
+from __future__ import annotations
+
+import math
+import shlex
+from collections.abc import Sequence
+from typing import Any
+
+from harv_jax.evaluation.summary import (
+    FLY_SETTING_KEYS,
+    MC_HYBRID_ROWS,
+    MC_OUTCOME_ROWS,
+    MC_RECOVERY_ROWS,
+    WALL_ROWS,
+    Row,
+    envelope_rows,
+    terminal_rows,
+)
+from harv_jax.report.document import Doc, fmt
+from harv_jax.task.spec import H0_FT
+
+
+def _deg(rad: Any) -> float | None:
+    return None if rad is None else math.degrees(float(rad))
+
+
+def _has(d: Any, path: Sequence[str]) -> bool:
+    for k in path:
+        if not isinstance(d, dict) or k not in d:
+            return False
+        d = d[k]
+    return True
+
+
+def _get(d: Any, path: Sequence[str]) -> Any:
+    for k in path:
+        if not isinstance(d, dict) or k not in d:
+            return None
+        d = d[k]
+    return d
+
+
+def _cell(block: dict, path: tuple[str, ...], spec: str) -> str:
+    v = _get(block, path)
+    if spec == "p5/p50/p95":
+        return " / ".join(fmt(_get(v, (k,)), ".3f") for k in ("p5", "p50", "p95"))
+    if spec == "within":
+        return " / ".join(fmt(_get(v, (k,)), "pct") for k in ("within_0p5", "within_2"))
+    return fmt(v, spec)
+
+
+def controller_table(controllers: dict[str, dict], rows: Sequence[Row]) -> tuple[list[str], list[list[str]]]:
+    """(header, rows) with one column per controller; rows absent from every controller are dropped (a
+    value that is present but null, e.g. the recovery time when nothing recovered, is shown as '–')."""
+    names = list(controllers)
+    header = ["metric", *names]
+    out = []
+    for label, path, spec in rows:
+        cells = [_cell(controllers[n], path, spec) for n in names]
+        if any(_has(controllers[n], path) for n in names):
+            out.append([label, *cells])
+    return header, out
+
+
+def mc_section(doc: Doc, summary: dict) -> None:
+    """Tables of a ``harv-jax mc`` summary.json."""
+    ctrls = summary.get("controllers") or {}
+    settings = [
+        ("runs", fmt(summary.get("runs"), "int")),
+        ("target alpha [rad]", fmt(summary.get("target_alpha_rad"))),
+        ("target alpha [deg]", fmt(_deg(summary.get("target_alpha_rad")), ".1f")),
+        ("initial altitude h0 [ft]", fmt(summary.get("h0_ft", H0_FT), "int")),
+        ("duration [s]", fmt(summary.get("duration_s"))),
+        ("step [s]", fmt(summary.get("dt_s"))),
+        ("seed", str(summary["seed"]) if summary.get("seed") is not None else "–"),
+        ("randomized aircraft", fmt(summary.get("randomize"))),
+        ("devices", ", ".join(summary.get("devices") or []) or "–"),
+    ]
+    for key, label in (("policy", "policy"), ("zeta_schedule", "ζ schedule")):
+        if summary.get(key) is not None:
+            settings.append((label, fmt(summary[key])))
+    doc.table(["setting", "value"], settings, numeric=False)
+    if not ctrls:
+        doc.p("summary.json lists no controller.")
+        return
+    doc.h(3, "Recovery and control activity")
+    units = {b.get("safety_interventions_unit") for b in ctrls.values()} - {None}
+    rows = tuple(
+        (f"{label} [{', '.join(sorted(units))}]", path, spec) if label == "safety interventions" and units
+        else (label, path, spec)
+        for label, path, spec in MC_RECOVERY_ROWS + MC_HYBRID_ROWS
+    )  # fmt: skip
+    doc.table(*controller_table(ctrls, rows))
+    doc.h(3, "Terminal tracking errors [deg] (mean over the last second of each run)")
+    doc.table(*controller_table(ctrls, terminal_rows()))
+    doc.h(3, "Outcomes [runs]")
+    doc.table(*controller_table(ctrls, MC_OUTCOME_ROWS))
+    doc.h(3, "Wall time (compile and run separately)")
+    doc.table(*controller_table(ctrls, WALL_ROWS))
+
+
+def envelope_section(doc: Doc, env: dict) -> None:
+    """Grid description and per-controller table of a ``harv-jax envelope`` envelope.json."""
+    grid = env.get("grid") or {}
+    rows = []
+    for key in ("x", "y"):
+        a = grid.get(key) or {}
+        scale = a.get("display_scale") or 1.0
+        lo, hi = (None if a.get(k) is None else a[k] * scale for k in ("low", "high"))
+        rng = f"{fmt(lo)} .. {fmt(hi)}"
+        rows.append(
+            (f"{key}: {a.get('name', '?')}", f"{rng} {a.get('display_unit', '')} ({a.get('n')} points)")
+        )
+    fixed = grid.get("fixed_state") or {}
+    rows.append(("fixed initial states", ", ".join(f"{k}0 = {v:g}" for k, v in fixed.items()) or "–"))
+    rows.append(("runs per controller", fmt(env.get("runs_per_controller"), "int")))
+    rows.append(("target alpha [rad]", fmt(env.get("target_alpha_rad"))))
+    rows.append(("duration [s]", fmt(env.get("duration_s"))))
+    rows.append(("aircraft", str(env.get("aircraft", "–"))))
+    if env.get("policy") is not None:
+        rows.append(("policy", str(env["policy"])))
+    doc.table(["setting", "value"], rows, numeric=False)
+    ctrls = env.get("controllers") or {}
+    if not ctrls:
+        return
+    codes = list(dict.fromkeys(c for b in ctrls.values() for c in (b.get("outcome_counts") or {})))
+    env_rows = envelope_rows(codes)
+    doc.h(3, "Per controller (every grid point counts once)")
+    doc.table(*controller_table(ctrls, env_rows))
+
+
+def fly_section(doc: Doc, metrics_doc: dict) -> None:
+    """Settings and scalar metrics of a ``harv-jax fly`` metrics.json."""
+    keys = FLY_SETTING_KEYS
+
+    def cell(v: Any) -> str:
+        return ", ".join(fmt(x) for x in v) if isinstance(v, list) else fmt(v)
+
+    doc.table(["setting", "value"], [(k, cell(metrics_doc[k])) for k in keys if k in metrics_doc], False)
+    m = dict(metrics_doc.get("metrics") or {})
+    if "outcome_name" in m:
+        m["outcome"] = m.pop("outcome_name")  # the name instead of the integer code
+    m.pop("outcome_code", None)
+    rows = [(k, cell(v)) for k, v in m.items()]
+    if rows:
+        doc.h(3, "Metrics (lists: per channel alpha, beta, mu or de, da, dr)")
+        doc.table(["metric", "value"], rows, numeric=False)
+
+
+def reconstruct_fly_command(metrics_doc: dict) -> str | None:
+    """The ``harv-jax fly`` command equivalent to a metrics.json's settings (it records none)."""
+    if "controller" not in metrics_doc or "scenario" not in metrics_doc:
+        return None
+    parts = ["harv-jax", "fly", "--controller", str(metrics_doc["controller"]), "--scenario",
+             str(metrics_doc["scenario"])]  # fmt: skip
+    ref = metrics_doc.get("reference_rad")
+    opts = (("--target-alpha", ref[0] if ref else None), ("--duration", metrics_doc.get("duration_s")),
+            ("--seed", metrics_doc.get("seed")), ("--switching", metrics_doc.get("switching")),
+            ("--spin-s", metrics_doc.get("spin_s")))  # fmt: skip
+    for flag, v in opts:
+        if v is not None:
+            parts += [flag, str(v)]
+    return " ".join(shlex.quote(p) for p in parts)
