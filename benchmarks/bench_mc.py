@@ -88,7 +88,7 @@ def step_cost(controller, params, reference_rad) -> dict[str, float]:
     from harv_jax.dynamics.actuators import actuator_step
     from harv_jax.dynamics.integrate import rk4_body_step
     from harv_jax.dynamics.state import from_wind, is_finite, to_wind
-    from harv_jax.scenarios import spin_entry_state
+    from harv_jax.task.scenarios import spin_entry_state
 
     def step(state, delta, cstate, key):
         x = to_wind(state)

@@ -31,13 +31,13 @@ from harv_jax.dynamics import CONTROL_NAMES, WIND_STATE_NAMES
 from harv_jax.evaluation import evaluate, summarize
 from harv_jax.evaluation.closed_loop import closed_loop
 from harv_jax.evaluation.metrics import compute_metrics, metrics_to_dict
-from harv_jax.scenarios import (
-    DEFAULT_ALPHA_TARGET_RAD,
+from harv_jax.task.scenarios import (
     SPIN_DURATION_S,
     open_loop_spin,
     sample_table_states,
     spin_check,
 )
+from harv_jax.task.spec import ALPHA_TARGET_RAD as DEFAULT_ALPHA_TARGET_RAD
 from harv_jax.units import RAD_PER_DEG
 
 HERE = Path(__file__).resolve().parent

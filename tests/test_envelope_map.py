@@ -22,8 +22,8 @@ from harv_jax.evaluation.envelope_map import (
     run_envelope,
     summarize_envelope,
 )
-from harv_jax.evaluation.metrics import OUTCOME_NAMES, tracking_errors
 from harv_jax.evaluation.monte_carlo import TERMINAL_WINDOW_S
+from harv_jax.task.criteria import OUTCOME_NAMES, tracking_errors
 
 DT_S = 0.01
 # 12 s with the 10 s hold window: the centre point (alpha0 = 0.436 rad, r0 = 0) recovers (about 0.2 s),

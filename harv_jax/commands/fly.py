@@ -55,7 +55,7 @@ def load_state_file(path: Path) -> dict[str, float]:
     h (ft, 25,000). Extra columns (e.g. t, de in a ``harv-jax simulate`` trajectory.csv) are ignored.
     """
     from harv_jax.commands.simulate import validate_state
-    from harv_jax.scenarios import DEFAULT_H0_FT
+    from harv_jax.task.spec import H0_FT as DEFAULT_H0_FT
 
     if not path.is_file():
         raise UsageError(
@@ -127,7 +127,7 @@ def _runner(controller_name: str, switching: str, n_steps: int, policy: str | No
 def _spin_runner(n_steps: int):
     import jax
 
-    from harv_jax.scenarios import open_loop, spin_controls_rad
+    from harv_jax.task.scenarios import open_loop, spin_controls_rad
 
     @functools.partial(jax.jit, compiler_options=FAST_COMPILE)
     def run(params, x0_wind):
@@ -161,7 +161,7 @@ def run_fly(
     from harv_jax.aircraft import harv
     from harv_jax.dynamics import WIND_STATE_NAMES, from_wind
     from harv_jax.evaluation.metrics import metrics_to_dict
-    from harv_jax.scenarios import sample_table_states, spin_check, spin_entry_state
+    from harv_jax.task.scenarios import sample_table_states, spin_check, spin_entry_state
 
     params = harv()
     key = jax.random.key(seed)
@@ -243,7 +243,7 @@ def run_fly(
 
 def spin_entry_controls() -> tuple[float, float, float]:
     """Pro-spin command [de, da, dr], rad (for the CSV's command columns during the spin phase)."""
-    from harv_jax.scenarios import SPIN_CONTROLS_RAD
+    from harv_jax.task.scenarios import SPIN_CONTROLS_RAD
 
     return SPIN_CONTROLS_RAD
 

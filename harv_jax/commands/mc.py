@@ -45,8 +45,8 @@ def build_controller(name: str, policy: str | None, zeta: str = "continuous"):
 
         return make_smc()
     if name in ("rl", "hybrid"):
-        from harv_jax.env.config import ACTION_SIZE, OBSERVATION_SIZE
         from harv_jax.policy import resolve_policy
+        from harv_jax.task.spaces import ACTION_SIZE, OBSERVATION_SIZE
 
         pol = resolve_policy(policy)
         sizes = (pol.networks.observation_size, pol.networks.action_size)
@@ -145,7 +145,7 @@ def run_monte_carlo(
         plot_terminal_errors,
         write_bands_csv,
     )
-    from harv_jax.scenarios import DEFAULT_H0_FT as H0_FT  # every run starts at h0
+    from harv_jax.task.spec import H0_FT  # every run starts at h0
 
     ctrls = {name: build_controller(name, policy, zeta) for name in controllers}
     dt_s = 0.01
