@@ -81,10 +81,10 @@ class Envelope:
     leaves it as departed (``within_envelope``: V, alpha, rates) or as a ground hit (h).
 
     Attributes:
-        v_min_fps, v_max_fps: airspeed range, ft/s (paper V in (0, 2000]).
-        alpha_min_rad, alpha_max_rad: angle-of-attack range, rad (paper -0.244, 1.571).
-        rate_max_radps: bound on each |p|, |q|, |r|, rad/s (paper 10 pi).
-        gamma_max_rad: bound on |gamma|, rad (paper 1.745). Note: gamma from ``to_wind`` lies in
+        v_min_fps, v_max_fps: airspeed range, ft/s (``task.spec``: V_MIN_FPS, V_MAX_FPS).
+        alpha_min_rad, alpha_max_rad: angle-of-attack range, rad (ALPHA_MIN_RAD, ALPHA_MAX_RAD).
+        rate_max_radps: bound on each |p|, |q|, |r|, rad/s (RATE_MAX_RADPS).
+        gamma_max_rad: bound on |gamma|, rad (GAMMA_MAX_RAD). Note: gamma from ``to_wind`` lies in
             [-pi/2, pi/2], so the paper's bound cannot bind; it is kept for fidelity and for lower values.
         h_floor_ft: the ground, ft (default 0; -inf disables it).
     """
