@@ -88,7 +88,7 @@ def step_cost(controller, params, reference_rad) -> dict[str, float]:
     from harv_jax.dynamics.actuators import actuator_step
     from harv_jax.dynamics.integrate import rk4_body_step
     from harv_jax.dynamics.state import from_wind, is_finite, to_wind
-    from harv_jax.scenarios import spin_entry_state
+    from harv_jax.task.scenarios import spin_entry_state
 
     def step(state, delta, cstate, key):
         x = to_wind(state)
@@ -133,8 +133,8 @@ def bench_controller(
     import numpy as np
 
     from harv_jax.aircraft import harv
-    from harv_jax.evaluation.metrics import OUTCOME_NAMES
     from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+    from harv_jax.task.criteria import OUTCOME_NAMES
 
     reference = jnp.array([TARGET_ALPHA_RAD, 0.0, 0.0])
     cost = step_cost(ctrl, harv(), reference)

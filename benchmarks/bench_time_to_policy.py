@@ -37,7 +37,7 @@ def mc(controller, runs: int, seed: int) -> dict:
     from harv_jax.aircraft import harv
     from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
     from harv_jax.evaluation.summary import summarize_controller
-    from harv_jax.scenarios import DEFAULT_ALPHA_TARGET_RAD
+    from harv_jax.task.spec import ALPHA_TARGET_RAD as DEFAULT_ALPHA_TARGET_RAD
 
     inputs = sample_mc_inputs(jax.random.key(seed), runs, harv())
     ref = jnp.asarray([DEFAULT_ALPHA_TARGET_RAD, 0.0, 0.0])

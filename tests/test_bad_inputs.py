@@ -360,9 +360,9 @@ def test_dynamics_reject_wrong_shapes_but_jit_and_vmap_work():
     with pytest.raises(ValueError, match=r"shape \[5\]"):
         jax.jit(lambda a: derivatives(a, u, p))(x[:5])
     with pytest.raises(ValueError, match=r"control u"):
-        rk4_step(x, u[:2], p)
+        rk4_step(x, u[:2], p, 0.01)
     with pytest.raises(ValueError, match=r"u_seq"):
-        rollout(x, jnp.zeros((4, 2)), p)
+        rollout(x, jnp.zeros((4, 2)), p, 0.01)
     batch = jnp.tile(x, (4, 1))
     xd = jax.jit(jax.vmap(lambda a: derivatives(a, u, p)))(batch)
     assert xd.shape == (4, 10) and bool(jnp.all(jnp.isfinite(xd)))

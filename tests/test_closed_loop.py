@@ -129,7 +129,7 @@ def test_recovers_at_least_95_percent_of_256_reset_bound_states():
     """The issue's acceptance run: 256 states from the paper's reset bounds (seed 0), alpha_d = 0.349 rad,
     60 s, nominal model. Measured: 256/256 (experiments/smc_tuning/README.md)."""
     from harv_jax.evaluation import evaluate, summarize
-    from harv_jax.scenarios import sample_table_states
+    from harv_jax.task.scenarios import sample_table_states
 
     x0 = sample_table_states(jax.random.key(0), 256)
     ref = jnp.array([0.349, 0.0, 0.0])

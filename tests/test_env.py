@@ -18,11 +18,8 @@ import pytest
 from harv_jax.aircraft.params import U_MAX_RAD, U_MIN_RAD, U_RATE_MAX_RADPS
 from harv_jax.dynamics import from_wind, to_wind
 from harv_jax.env import (
-    ACTION_SIZE,
-    OBS_HIGH,
-    OBS_LOW,
-    OBSERVATION_SIZE,
     EnvConfig,
+    TerminationFlags,
     default_params,
     default_randomization_params,
     make_env,
@@ -30,7 +27,9 @@ from harv_jax.env import (
     reward,
     termination_flags,
 )
-from harv_jax.env.config import RESET_HIGH, RESET_LOW, paper_envelope_params
+from harv_jax.task.criteria import default_envelope as paper_envelope_params
+from harv_jax.task.scenarios import RESET_HIGH, RESET_LOW
+from harv_jax.task.spaces import ACTION_SIZE, OBS_HIGH, OBS_LOW, OBSERVATION_SIZE
 
 N = 64
 CONFIG = EnvConfig()
@@ -41,7 +40,7 @@ P = P.replace(spin_states=jnp.tile(P.spin_states, (2, 1)))
 P_QUIET = P.replace(randomization=default_randomization_params(enabled=False))  # traced switches off
 #: Straight and level near trim at 600 ft/s, 25,000 ft (alpha 5.1 deg, MODEL.md trim table).
 LEVEL = np.array([600.0, 0.089, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 25000.0], dtype=np.float32)
-FLAG_NAMES = recovery.TerminationFlags._fields
+FLAG_NAMES = TerminationFlags._fields
 #: Tests compile with XLA's backend optimizations off: a third of the compile time, same semantics.
 jit_fast = functools.partial(jax.jit, compiler_options={"xla_backend_optimization_level": 0})
 

@@ -12,7 +12,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from harv_jax.env import OBS_HIGH, OBS_LOW, EnvConfig, default_params
+from harv_jax.env import EnvConfig, default_params
+from harv_jax.task.spaces import OBS_HIGH, OBS_LOW
 
 #: Tests compile with XLA's backend optimizations off: a third of the compile time, same semantics.
 COMPILER_OPTIONS = {"xla_backend_optimization_level": 0}

@@ -21,9 +21,9 @@ from harv_jax.evaluation.envelope_map import (
     make_grid,
     run_envelope,
 )
-from harv_jax.evaluation.metrics import OUTCOME_NAMES, tracking_errors
 from harv_jax.evaluation.monte_carlo import TERMINAL_WINDOW_S
 from harv_jax.evaluation.summary import summarize_envelope
+from harv_jax.task.criteria import OUTCOME_NAMES, tracking_errors
 
 DT_S = 0.01
 # 12 s with the 10 s hold window: the centre point (alpha0 = 0.436 rad, r0 = 0) recovers (about 0.2 s),

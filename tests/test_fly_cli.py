@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from cli_util import cli_run
 
-from harv_jax.evaluation import OUTCOME_NAMES
+from harv_jax.task.criteria import OUTCOME_NAMES
 
 DURATION = "0.5"  # s: the flights only exercise the command; the 60 s results are in experiments/
 

@@ -16,7 +16,7 @@ from harv_jax.control.hybrid import HybridConfig, default_hybrid_gains, make_hyb
 from harv_jax.control.safety import limit_box
 from harv_jax.control.smc import SMCConfig, smc_command
 from harv_jax.policy import load
-from harv_jax.scenarios import sample_table_states
+from harv_jax.task.scenarios import sample_table_states
 
 REF = jnp.array([0.349, 0.0, 0.0])
 G = default_hybrid_gains(jnp.float32)
@@ -147,7 +147,7 @@ def test_fixture_policies_load_and_behave_as_named(tmp_path):
     paths = write_fixture_policies(tmp_path)
     assert tuple(paths) == FIXTURE_POLICIES
     xs = sample_table_states(jax.random.key(5), 64)
-    from harv_jax.env.recovery import observation
+    from harv_jax.task.spaces import observation
 
     obs = jax.vmap(lambda x: observation(x, REF))(xs)
     acts = {k: np.asarray(load(p).deterministic(obs)) for k, p in paths.items()}

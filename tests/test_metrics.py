@@ -12,16 +12,13 @@ import pytest
 
 from harv_jax.aircraft import harv
 from harv_jax.evaluation.metrics import (
-    OUTCOME_NAMES,
-    Outcome,
     chatter_index_rad2,
     compute_metrics,
-    recovered_mask,
     settle_time_s,
     total_variation_rad,
-    tracking_errors,
 )
 from harv_jax.evaluation.summary import metrics_to_dict, summarize
+from harv_jax.task.criteria import OUTCOME_NAMES, Outcome, recovered_mask, tracking_errors
 from harv_jax.units import RAD_PER_DEG
 
 DT = 0.01
@@ -99,7 +96,7 @@ def test_mu_error_is_wrapped():
 
 
 def _default():
-    from harv_jax.evaluation.metrics import default_criterion
+    from harv_jax.task.criteria import default_criterion
 
     return default_criterion()
 

@@ -14,13 +14,13 @@ from harv_jax.aircraft import harv
 from harv_jax.cli import app
 from harv_jax.control.smc import make_smc
 from harv_jax.evaluation.closed_loop import evaluate
-from harv_jax.evaluation.metrics import tracking_errors
 from harv_jax.evaluation.monte_carlo import (
     TERMINAL_WINDOW_S,
     run_mc,
     sample_mc_inputs,
 )
 from harv_jax.evaluation.summary import summarize_controller
+from harv_jax.task.criteria import tracking_errors
 
 N_STEPS = 300  # 3 s: enough for distinct outcomes (most runs TIMEOUT, some DEPARTED)
 REF = jnp.array([0.349, 0.0, 0.0])

@@ -73,8 +73,8 @@ def test_json_numbers_are_rounded(tmp_path):
 def test_metrics_dict_stores_the_outcome_by_name():
     import jax.numpy as jnp
 
-    from harv_jax.evaluation.metrics import OUTCOME_NAMES
     from harv_jax.evaluation.summary import metrics_to_dict
+    from harv_jax.task.criteria import OUTCOME_NAMES
 
     class _M:  # the fields metrics_to_dict reads
         __dataclass_fields__ = {"outcome": None, "t_recover_s": None}

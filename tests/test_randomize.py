@@ -18,6 +18,7 @@ import pytest
 
 from harv_jax.aircraft.data_harv import AERO_COLUMNS
 from harv_jax.aircraft.params import harv
+from harv_jax.aircraft.randomize import AERO_GROUPS
 from harv_jax.env import randomize
 from harv_jax.env.config import DEFAULT_NOISE_STD_MAX, default_randomization_params
 
@@ -68,7 +69,7 @@ def test_mass_and_inertia_factors_are_independent(draws):
 )
 def test_aero_groups_within_ranges(draws, group, frac):
     scale = np.asarray(draws.aircraft.aero_scale)
-    idx = [AERO_COLUMNS.index(c) for c in randomize.AERO_GROUPS[group]]
+    idx = [AERO_COLUMNS.index(c) for c in AERO_GROUPS[group]]
     s = scale[:, idx]
     assert s.min() >= 1 - frac - 1e-6 and s.max() <= 1 + frac + 1e-6
     assert s.min() < 1 - 0.95 * frac and s.max() > 1 + 0.95 * frac

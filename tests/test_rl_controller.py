@@ -8,7 +8,7 @@ import numpy as np
 
 from harv_jax.aircraft import harv
 from harv_jax.control.rl import make_rl_controller
-from harv_jax.env.recovery import action_to_command, observation
+from harv_jax.task.spaces import action_to_command, observation
 
 
 def test_rl_controller_maps_like_the_env():

@@ -9,11 +9,7 @@ import numpy as np
 import pytest
 
 from harv_jax.aircraft import harv
-from harv_jax.scenarios import (
-    ALPHA_TARGET_BOUNDS_RAD,
-    DEFAULT_H0_FT,
-    RESET_BOUNDS,
-    RESET_STATE_NAMES,
+from harv_jax.task.scenarios import (
     SPIN_CONTROLS_RAD,
     SPIN_ENTRY,
     developed_spin_state,
@@ -23,6 +19,8 @@ from harv_jax.scenarios import (
     sample_table_states,
     spin_check,
 )
+from harv_jax.task.spec import ALPHA_TARGET_BOUNDS_RAD, RESET_BOUNDS, RESET_STATE_NAMES
+from harv_jax.task.spec import H0_FT as DEFAULT_H0_FT
 from harv_jax.units import RAD_PER_DEG
 
 #: Tests run short horizons: trade XLA backend optimization for ~30% less compile time.

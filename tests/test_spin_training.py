@@ -10,7 +10,7 @@ import pytest
 from harv_jax.aircraft import harv
 from harv_jax.env import EnvConfig, make_env, settings
 from harv_jax.env.config import default_randomization_params
-from harv_jax.spin_bank import make_spin_bank
+from harv_jax.task.spin_bank import make_spin_bank
 
 
 @pytest.fixture(scope="module")

@@ -14,7 +14,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import oracle_body_axis as oracle  # noqa: E402
 
 from harv_jax.aircraft import harv  # noqa: E402
-from harv_jax.trim import level_flight, level_flight_state  # noqa: E402
+from harv_jax.dynamics.trim import level_flight, level_flight_state  # noqa: E402
 
 
 def test_level_flight_state_layout(x64):

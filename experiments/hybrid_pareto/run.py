@@ -53,9 +53,9 @@ from harv_jax.control.hybrid import (
 from harv_jax.control.rl import make_rl_controller
 from harv_jax.control.smc import SMCConfig, SMCGains, default_gains, make_smc
 from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.metrics import OUTCOME_NAMES
 from harv_jax.evaluation.monte_carlo import MCInputs, sample_mc_inputs
 from harv_jax.policy import resolve_policy
+from harv_jax.task.criteria import OUTCOME_NAMES
 from harv_jax.task.spec import ALPHA_TARGET_RAD, BETA_TARGET_RAD, DT_S, H0_FT, MU_TARGET_RAD
 from harv_jax.units import RAD_PER_DEG
 

@@ -29,7 +29,8 @@ from harv_jax.control.hybrid import (
     make_hybrid,
 )
 from harv_jax.control.rl import make_rl_controller
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, summarize_controller
+from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+from harv_jax.evaluation.summary import summarize_controller
 from harv_jax.policy import resolve_policy
 
 #: (name, schedule, e_on [3] rad, e_off [3] rad, zeta floor). "paper": the paper's tube (0.05 rad on every

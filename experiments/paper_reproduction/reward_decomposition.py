@@ -21,9 +21,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from harv_jax.env.config import EnvConfig
-from harv_jax.env.recovery import TerminationFlags, make_env
-from harv_jax.env.reward import tracking_errors
+from harv_jax.env.recovery import make_env
+from harv_jax.env.termination import TerminationFlags
 from harv_jax.policy import resolve_policy
+from harv_jax.task.criteria import tracking_errors
 
 TERMS = ("raw", "bonus_alpha", "bonus_beta", "bonus_mu", "action", "shaping", "terminal")
 REASONS = TerminationFlags._fields

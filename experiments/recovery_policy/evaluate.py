@@ -30,10 +30,11 @@ from harv_jax.aircraft import harv
 from harv_jax.control.rl import make_rl_controller
 from harv_jax.control.smc import make_smc
 from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, summarize_controller
+from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
 from harv_jax.evaluation.policy_eval import make_eval_batch
+from harv_jax.evaluation.summary import summarize_controller
 from harv_jax.policy import resolve_policy
-from harv_jax.scenarios import DEFAULT_ALPHA_TARGET_RAD
+from harv_jax.task.spec import ALPHA_TARGET_RAD as DEFAULT_ALPHA_TARGET_RAD
 
 N_STEPS = 6000  # 60 s at dt 0.01 s
 REF = jnp.asarray([DEFAULT_ALPHA_TARGET_RAD, 0.0, 0.0])

@@ -95,10 +95,11 @@ def mc_eval(policy: str, runs: int, seed: int) -> dict:
 
     from harv_jax.aircraft import harv
     from harv_jax.control.rl import make_rl_controller
-    from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, summarize_controller
+    from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
     from harv_jax.evaluation.policy_eval import make_eval_batch
+    from harv_jax.evaluation.summary import summarize_controller
     from harv_jax.policy import resolve_policy
-    from harv_jax.scenarios import DEFAULT_ALPHA_TARGET_RAD
+    from harv_jax.task.spec import ALPHA_TARGET_RAD as DEFAULT_ALPHA_TARGET_RAD
 
     ctrl = make_rl_controller(resolve_policy(policy).deterministic)
     ref = jnp.asarray([DEFAULT_ALPHA_TARGET_RAD, 0.0, 0.0])

@@ -30,14 +30,15 @@ from harv_jax.control import SMCConfig, SMCGains, default_gains, make_smc
 from harv_jax.dynamics import CONTROL_NAMES, WIND_STATE_NAMES
 from harv_jax.evaluation import evaluate, summarize
 from harv_jax.evaluation.closed_loop import closed_loop
-from harv_jax.evaluation.metrics import compute_metrics, metrics_to_dict
-from harv_jax.scenarios import (
-    DEFAULT_ALPHA_TARGET_RAD,
+from harv_jax.evaluation.metrics import compute_metrics
+from harv_jax.evaluation.summary import metrics_to_dict
+from harv_jax.task.scenarios import (
     SPIN_DURATION_S,
     open_loop_spin,
     sample_table_states,
     spin_check,
 )
+from harv_jax.task.spec import ALPHA_TARGET_RAD as DEFAULT_ALPHA_TARGET_RAD
 from harv_jax.units import RAD_PER_DEG
 
 HERE = Path(__file__).resolve().parent
@@ -136,11 +137,11 @@ def part_tune2(n: int, seed: int) -> list[dict]:
         m_p, diag_p = jax.block_until_ready(fn_pert(g, x0, params))
         r_p = row(name, m_p, diag_p, 0.0)
         r["perturbed"] = {
-            k: r_p[k] for k in ("recovered_fraction", "t_recover_median_s", "control_tv_rad_mean", "outcomes")
+            k: r_p[k] for k in ("recovery_rate", "t_recover_median_s", "control_tv_rad_mean", "outcomes")
         }
         rows.append(r)
         print(
-            f"tune2 {name:34s} rec {r['recovered_fraction']:.3f} pert {r_p['recovered_fraction']:.3f} "
+            f"tune2 {name:34s} rec {r['recovery_rate']:.3f} pert {r_p['recovery_rate']:.3f} "
             f"t50 {r['t_recover_median_s']} tv {r['control_tv_rad_mean']:.1f}",
             flush=True,
         )
@@ -210,7 +211,7 @@ def row(name: str, m, diag, seconds: float) -> dict:
     t_rec = np.asarray(m.t_recover_s)[rec]
     return {
         "name": name,
-        "recovered_fraction": s["recovered_fraction"],
+        "recovery_rate": s["recovery_rate"],
         "recovered_in_envelope_fraction": s["recovered_and_in_envelope_fraction"],
         "outcomes": s["outcome_counts"],
         "t_recover_median_s": float(np.median(t_rec)) if t_rec.size else None,
@@ -233,7 +234,7 @@ def part_tune(n: int, seed: int) -> list[dict]:
         m, diag = jax.block_until_ready(fn(g, x0))
         rows.append(row(name, m, diag, time.time() - t0))
         print(
-            f"tune {name:28s} rec {rows[-1]['recovered_fraction']:.3f} "
+            f"tune {name:28s} rec {rows[-1]['recovery_rate']:.3f} "
             f"t50 {rows[-1]['t_recover_median_s']} ({rows[-1]['seconds']:.1f} s)",
             flush=True,
         )
@@ -252,7 +253,7 @@ def part_ablate(n: int, seed: int) -> list[dict]:
         m, diag = jax.block_until_ready(make_batch_fn(cfg)(default_gains(), x0))
         rows.append(row(name, m, diag, time.time() - t0))
         print(
-            f"ablate {name:30s} rec {rows[-1]['recovered_fraction']:.3f} ({rows[-1]['seconds']:.1f} s)",
+            f"ablate {name:30s} rec {rows[-1]['recovery_rate']:.3f} ({rows[-1]['seconds']:.1f} s)",
             flush=True,
         )
     return rows
@@ -323,7 +324,7 @@ def _cols(x: np.ndarray, d: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def _plot_run(x0: jnp.ndarray, path: Path, title: str, every: int = 10) -> None:
-    from harv_jax.plotting import plot_time_histories
+    from harv_jax.plots.time_histories import plot_time_histories
 
     params = harv()
     res = jax.jit(
@@ -370,7 +371,7 @@ def _plot_hist(t_rec: np.ndarray, v0: np.ndarray, path: Path) -> None:
 
 
 def part_spin() -> dict:
-    from harv_jax.plotting import plot_time_histories
+    from harv_jax.plots.time_histories import plot_time_histories
 
     params = harv()
     n_spin = int(round(SPIN_DURATION_S / DT_S))
@@ -459,7 +460,7 @@ def main() -> None:
             print(
                 key,
                 "recovered",
-                s["recovered_fraction"],
+                s["recovery_rate"],
                 s["outcome_counts"],
                 "t_rec",
                 s["t_recover_s_percentiles"],

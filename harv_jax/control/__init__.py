@@ -1,4 +1,7 @@
-"""Controllers: the shared interface, Lie derivatives of the controller model, sliding-mode control."""
+"""Controllers: owns the shared interface (``base.Controller(init, apply)``), the Lie derivatives of the
+controller model (``lie``), sliding-mode control (``smc``), the safety filter, zeta schedules, gate and
+supervisor, the hybrid (``hybrid``) and the RL-only controller (``rl``). Observation/action mapping and
+reset bounds come from ``harv_jax.task``; ``control`` never imports ``env`` or ``evaluation``."""
 
 from harv_jax.control.base import Controller
 from harv_jax.control.lie import (

@@ -48,7 +48,7 @@ from harv_jax.control.supervisor import (
     supervise,
     supervisor_init,
 )
-from harv_jax.env.recovery import action_to_command, observation
+from harv_jax.task.spaces import action_to_command, observation
 
 ZetaSchedule = Literal["hysteresis", "continuous", "gated", "always", "never"]
 ZETA_SCHEDULES: tuple[str, ...] = ("hysteresis", "continuous", "gated", "always", "never")

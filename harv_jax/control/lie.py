@@ -24,9 +24,20 @@ import jax.numpy as jnp
 
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.dynamics.eom import derivatives, wind_derivatives, wind_trig
+from harv_jax.dynamics.state import (
+    TRACKED_INDEX,
+    WIND_INDEX,
+    alpha_rad,
+    beta_rad,
+    gamma_rad,
+    h_ft,
+    mu_rad,
+    omega_radps,
+    vt_fps,
+)
 
 #: Indices of the controlled outputs y = [alpha, beta, mu] in the wind-axis state.
-Y_INDEX = (1, 2, 6)
+Y_INDEX = TRACKED_INDEX
 
 OutputFn = Callable[[jnp.ndarray], jnp.ndarray]
 
@@ -130,8 +141,8 @@ def wind_roll_rate_radps(x: jnp.ndarray, params: AircraftParams) -> jnp.ndarray:
     controller model; equal to MODEL.md's (p ca + r sa)/cb + tb q_w but free of 1/cos(beta). Unlike
     mu_dot = p_w + tan(gamma) (q_w smu + r_w cmu) it stays defined at gamma = +-90 deg.
     """
-    alpha, beta = x[1], x[2]
-    p, q, r = x[3], x[4], x[5]
+    alpha, beta = alpha_rad(x), beta_rad(x)
+    p, q, r = (x[WIND_INDEX[n]] for n in ("p", "q", "r"))
     u0 = jnp.zeros((3,), dtype=x.dtype)
     alpha_dot = controller_model(x, u0, params)[1]
     return jnp.cos(beta) * (p * jnp.cos(alpha) + r * jnp.sin(alpha)) + jnp.sin(beta) * (q - alpha_dot)
@@ -188,7 +199,8 @@ def smc_lie_terms(x: jnp.ndarray, params: AircraftParams) -> tuple[LieTerms2, Li
     """
     u0 = jnp.zeros((3,), dtype=x.dtype)
     idx = jnp.array(Y_INDEX)
-    vt, alpha, beta, pqr, mu, gamma, h = x[0], x[1], x[2], x[3:6], x[6], x[7], x[9]
+    vt, alpha, beta, pqr = vt_fps(x), alpha_rad(x), beta_rad(x), omega_radps(x)
+    mu, gamma, h = mu_rad(x), gamma_rad(x), h_ft(x)
 
     def z_state(vt_, alpha_, beta_, pqr_, mu_, gamma_, h_):
         return _z_parts(vt_, alpha_, beta_, pqr_, mu_, gamma_, h_, u0, params)

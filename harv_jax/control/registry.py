@@ -61,8 +61,8 @@ def _build_smc(opts: ControllerOptions) -> Controller:
 
 def _policy_act(policy: str | None) -> Callable:
     """The deterministic action of the policy at ``policy``; UsageError if its sizes do not fit."""
-    from harv_jax.env.config import ACTION_SIZE, OBSERVATION_SIZE
     from harv_jax.policy import resolve_policy
+    from harv_jax.task.spaces import ACTION_SIZE, OBSERVATION_SIZE
 
     pol = resolve_policy(policy)
     sizes = (pol.networks.observation_size, pol.networks.action_size)

@@ -1,6 +1,6 @@
 """A trained policy as a ``Controller``: the RL-only controller of the paper's comparisons.
 
-The policy sees the env's observation (``harv_jax.env.recovery.observation``: V, alpha, beta, p, q, r,
+The policy sees the env's observation (``harv_jax.task.spaces.observation``: V, alpha, beta, p, q, r,
 mu, gamma and the references, physical units) and returns a normalized action in [-1, 1]^3, mapped
 affinely to the deflection limits exactly as the env does. Position and rate limits are then applied
 by the plant's actuator model, so "RL-only" is subject only to actuator saturation, as in the paper.
@@ -15,7 +15,7 @@ import jax.numpy as jnp
 
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
-from harv_jax.env.recovery import action_to_command, observation
+from harv_jax.task.spaces import action_to_command, observation
 
 
 def make_rl_controller(

@@ -46,7 +46,8 @@ from harv_jax.aircraft.aero import wrap_angle_rad
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
 from harv_jax.control.lie import output_lie_terms, smc_lie_terms
-from harv_jax.dynamics.integrate import DEFAULT_DT_S
+from harv_jax.dynamics.state import WIND_INDEX
+from harv_jax.task.spec import DT_S
 from harv_jax.units import RAD_PER_DEG
 
 #: Index of the mu channel in y = [alpha, beta, mu].
@@ -132,7 +133,7 @@ class SMCConfig:
     """
 
     switching: Literal["sat", "sign"] = "sat"
-    dt_s: float = DEFAULT_DT_S
+    dt_s: float = DT_S
     reset_integral_on_reference_change: bool = True
     freeze_integral_when_saturated: bool = True
     vertical_mu_handling: bool = True
@@ -299,7 +300,7 @@ def smc_command(
     a = lt.lglf_y
     b = nu - lt.lf2_y
     if cfg.vertical_mu_handling:
-        w = mu_channel_weight(x[7], gains)
+        w = mu_channel_weight(x[WIND_INDEX["gamma"]], gains)
         p_w = pw.h[0]
         # pure mu row is useless (and tan(gamma)-large) near vertical: blend in p_w_dot = -k_pw p_w
         # (where, not 0 * x: at |gamma| = 90 deg exactly the mu terms may be inf/NaN)
@@ -308,7 +309,7 @@ def smc_command(
         a = a.at[MU_CHANNEL].set(w * a_mu + (1.0 - w) * pw.lg_h[0])
         b = b.at[MU_CHANNEL].set(w * b_mu + (1.0 - w) * (-gains.k_pw_ps * p_w - pw.lf_h[0]))
     else:
-        w = jnp.ones_like(x[7])
+        w = jnp.ones_like(x[WIND_INDEX["gamma"]])
     if u_offset_rad is not None:
         b = b - jnp.where(jnp.isfinite(a), a, 0.0) @ u_offset_rad
     u, solve = guarded_solve(a, b, gains.cond_max, gains.sigma_floor)

@@ -18,7 +18,9 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from harv_jax.env.config import RESET_HIGH, RESET_LOW
+from harv_jax.dynamics.state import WIND_INDEX
+from harv_jax.task.scenarios import RESET_HIGH, RESET_LOW
+from harv_jax.task.spec import ALPHA_MIN_RAD, V_MIN_FPS
 
 
 class FallbackReason(enum.IntEnum):
@@ -30,12 +32,14 @@ class FallbackReason(enum.IntEnum):
 
 
 #: Indices of [V, alpha, beta, p, q, r] in the wind state.
-SUPERVISED_INDEX = (0, 1, 2, 3, 4, 5)
+SUPERVISED_INDEX = tuple(WIND_INDEX[n] for n in ("V", "alpha", "beta", "p", "q", "r"))
 #: Default trusted box of [V ft/s, alpha, beta rad, p, q, r rad/s]: the paper's reset bounds (where
 #: training episodes start), widened by 10% of their width on each side, with alpha's lower edge at the
-#: envelope's -0.244 rad.
+#: envelope's lower alpha (``task.spec.ALPHA_MIN_RAD``).
 _WIDTH = RESET_HIGH[:6] - RESET_LOW[:6]
-DEFAULT_BOX_LOW = np.maximum(RESET_LOW[:6] - 0.1 * _WIDTH, [0.0, -0.244, -np.inf, -np.inf, -np.inf, -np.inf])
+DEFAULT_BOX_LOW = np.maximum(
+    RESET_LOW[:6] - 0.1 * _WIDTH, [V_MIN_FPS, ALPHA_MIN_RAD, -np.inf, -np.inf, -np.inf, -np.inf]
+)
 DEFAULT_BOX_HIGH = RESET_HIGH[:6] + 0.1 * _WIDTH
 
 

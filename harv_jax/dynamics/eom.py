@@ -24,7 +24,7 @@ import jax.numpy as jnp
 from harv_jax.aircraft.aero import coefficients
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.dynamics.atmosphere import density_and_thrust_lapse
-from harv_jax.dynamics.state import BodyState, check_shape
+from harv_jax.dynamics.state import RATES, WIND_INDEX, BodyState, check_shape
 
 #: Airspeed floor for the non-dimensional rates p b / (2V) etc., ft/s (guards V -> 0 only).
 V_FLOOR_FPS = 1.0
@@ -109,7 +109,8 @@ def derivatives(
     """
     check_shape(x, (10,), "state x [V, alpha, beta, p, q, r, mu, gamma, chi, h]")
     check_shape(u, (3,), "control u [de, da, dr]")
-    return wind_derivatives(x[0], x[1], x[2], x[3:6], x[6], x[7], x[9], u, params, control_forces)
+    vt, alpha, beta, mu, gamma, h = (x[WIND_INDEX[n]] for n in ("V", "alpha", "beta", "mu", "gamma", "h"))
+    return wind_derivatives(vt, alpha, beta, x[RATES], mu, gamma, h, u, params, control_forces)
 
 
 @jax.custom_jvp

@@ -1,4 +1,4 @@
-"""Fixed-step RK4 integration of the singularity-free state, and scan-based rollouts."""
+"""Fixed-step RK4 integration of the singularity-free state (the plant step is ``dynamics.plant``)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,7 @@ import jax.numpy as jnp
 
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.dynamics.eom import body_derivatives, derivatives
-from harv_jax.dynamics.state import BodyState, check_shape, from_wind, to_wind
-
-DEFAULT_DT_S = 0.01
+from harv_jax.dynamics.state import WIND_INDEX, BodyState, check_shape, from_wind, to_wind
 
 
 def _axpy(a, x: BodyState, y: BodyState) -> BodyState:
@@ -20,7 +18,7 @@ def rk4_body_step(
     state: BodyState,
     u: jnp.ndarray,
     params: AircraftParams,
-    dt_s: float | jnp.ndarray = DEFAULT_DT_S,
+    dt_s: float | jnp.ndarray,
     wind_body_fps: jnp.ndarray | None = None,
 ) -> BodyState:
     """One RK4 step of the body-axis state (controls and wind held over the step).
@@ -44,7 +42,7 @@ def rk4_step(
     x: BodyState | jnp.ndarray,
     u: jnp.ndarray,
     params: AircraftParams,
-    dt_s: float | jnp.ndarray = DEFAULT_DT_S,
+    dt_s: float | jnp.ndarray,
     wind_body_fps: jnp.ndarray | None = None,
 ) -> BodyState | jnp.ndarray:
     """One RK4 step of the flight model.
@@ -54,7 +52,7 @@ def rk4_step(
             body form, stepped there (no wind-axis singularity inside the step) and converted back.
         u: [3] deflections [de, da, dr], rad, held over the step.
         params: aircraft parameters.
-        dt_s: step, s (default 0.01).
+        dt_s: step, s (the paper's is ``task.spec.DT_S``).
         wind_body_fps: optional [3] wind in body axes.
 
     Returns:
@@ -67,11 +65,12 @@ def rk4_step(
     new = rk4_body_step(body, u, params, dt_s, wind_body_fps)
     out = to_wind(new)
     # chi is only defined modulo 2 pi; keep it continuous with the input
-    return out.at[8].set(x[8] + jnp.mod(out[8] - x[8] + jnp.pi, 2 * jnp.pi) - jnp.pi)
+    chi = WIND_INDEX["chi"]
+    return out.at[chi].set(x[chi] + jnp.mod(out[chi] - x[chi] + jnp.pi, 2 * jnp.pi) - jnp.pi)
 
 
 def rk4_step_wind(
-    x: jnp.ndarray, u: jnp.ndarray, params: AircraftParams, dt_s: float | jnp.ndarray = DEFAULT_DT_S
+    x: jnp.ndarray, u: jnp.ndarray, params: AircraftParams, dt_s: float | jnp.ndarray
 ) -> jnp.ndarray:
     """One RK4 step of the paper's wind-axis equations themselves (singular at |gamma| = 90 deg).
 
@@ -86,32 +85,3 @@ def rk4_step_wind(
     k3 = f(x + 0.5 * dt_s * k2)
     k4 = f(x + dt_s * k3)
     return x + (dt_s / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-
-
-def rollout(
-    x0: BodyState | jnp.ndarray,
-    u_seq: jnp.ndarray,
-    params: AircraftParams,
-    dt_s: float | jnp.ndarray = DEFAULT_DT_S,
-) -> jnp.ndarray:
-    """Open-loop rollout with ``lax.scan`` in the body form.
-
-    Args:
-        x0: initial wind-axis state [10] or BodyState.
-        u_seq: [T, 3] deflections per step, rad.
-        params: aircraft parameters.
-        dt_s: step, s.
-
-    Returns:
-        [T + 1, 10] wind-axis states (initial state first). x_N, y_E are not returned.
-    """
-    if jnp.ndim(u_seq) != 2 or jnp.shape(u_seq)[1] != 3:
-        raise ValueError(f"u_seq has shape {list(jnp.shape(u_seq))}, expected [T, 3] (de, da, dr per step)")
-    body0 = x0 if isinstance(x0, BodyState) else from_wind(x0)
-
-    def step(s, u):
-        s1 = rk4_body_step(s, u, params, dt_s)
-        return s1, to_wind(s1)
-
-    _, xs = jax.lax.scan(step, body0, u_seq)
-    return jnp.concatenate([to_wind(body0)[None], xs], axis=0)

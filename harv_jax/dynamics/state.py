@@ -35,7 +35,58 @@ WIND_STATE_NAMES: tuple[str, ...] = (
     "V", "alpha", "beta", "p", "q", "r", "mu", "gamma", "chi", "h",
 )  # fmt: skip
 CONTROL_NAMES: tuple[str, ...] = ("de", "da", "dr")
+#: Position of each wind-state component by name (``x[..., WIND_INDEX["alpha"]]``).
 WIND_INDEX = {n: i for i, n in enumerate(WIND_STATE_NAMES)}
+#: Positions of the tracked outputs [alpha, beta, mu] in the wind state.
+TRACKED_INDEX: tuple[int, int, int] = (WIND_INDEX["alpha"], WIND_INDEX["beta"], WIND_INDEX["mu"])
+#: The body rates [p, q, r] as a slice of the wind state.
+RATES = slice(WIND_INDEX["p"], WIND_INDEX["r"] + 1)
+
+
+# Named views of a wind-axis state x [..., 10] (any leading axes); use these instead of positions.
+def vt_fps(x: jnp.ndarray) -> jnp.ndarray:
+    """True airspeed V [...], ft/s."""
+    return x[..., WIND_INDEX["V"]]
+
+
+def alpha_rad(x: jnp.ndarray) -> jnp.ndarray:
+    """Angle of attack [...], rad."""
+    return x[..., WIND_INDEX["alpha"]]
+
+
+def beta_rad(x: jnp.ndarray) -> jnp.ndarray:
+    """Sideslip [...], rad."""
+    return x[..., WIND_INDEX["beta"]]
+
+
+def omega_radps(x: jnp.ndarray) -> jnp.ndarray:
+    """Body rates [p, q, r] [..., 3], rad/s."""
+    return x[..., RATES]
+
+
+def yaw_rate_radps(x: jnp.ndarray) -> jnp.ndarray:
+    """Yaw rate r [...], rad/s."""
+    return x[..., WIND_INDEX["r"]]
+
+
+def mu_rad(x: jnp.ndarray) -> jnp.ndarray:
+    """Wind-axis bank angle [...], rad."""
+    return x[..., WIND_INDEX["mu"]]
+
+
+def gamma_rad(x: jnp.ndarray) -> jnp.ndarray:
+    """Flight-path angle [...], rad."""
+    return x[..., WIND_INDEX["gamma"]]
+
+
+def chi_rad(x: jnp.ndarray) -> jnp.ndarray:
+    """Flight-path azimuth [...], rad."""
+    return x[..., WIND_INDEX["chi"]]
+
+
+def h_ft(x: jnp.ndarray) -> jnp.ndarray:
+    """Altitude [...], ft."""
+    return x[..., WIND_INDEX["h"]]
 
 
 @struct.dataclass

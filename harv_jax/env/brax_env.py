@@ -28,9 +28,11 @@ import jax.numpy as jnp
 from brax.envs.base import Env as BraxEnvBase
 from brax.envs.base import State
 
-from harv_jax.env.config import ACTION_SIZE, OBSERVATION_SIZE, EnvConfig, EnvParams
-from harv_jax.env.recovery import TerminationFlags, make_env
+from harv_jax.env.config import EnvConfig, EnvParams
+from harv_jax.env.recovery import make_env
 from harv_jax.env.reward import RewardTerms
+from harv_jax.env.termination import TerminationFlags
+from harv_jax.task.spaces import ACTION_SIZE, OBSERVATION_SIZE
 
 
 class HarvBraxEnv(BraxEnvBase):

@@ -5,8 +5,8 @@ delay-buffer size, the master domain-randomization switch, and the *defaults* of
 
 Traced (``EnvParams`` and its parts, passed to ``reset``/``step``; changing them does not recompile):
 reward weights (``RewardParams``), randomization ranges and switches (``RandomizationParams``),
-reset bounds (``ResetParams``), the flight envelope (``EnvelopeParams``), the initial altitude, and the
-spin-entry reset states.
+reset bounds (``ResetParams``), the flight envelope (``task.criteria.Envelope``), the initial altitude,
+and the spin-entry reset states. The paper's numbers come from ``harv_jax.task.spec``.
 
 Sources: paper Section IV-A (reward, weights, terminal reward) and its Tables (observation/action ranges,
 reset bounds); ``../shared/MODEL.md`` ("Envelope (terminations) and reset bounds").
@@ -15,7 +15,6 @@ reset bounds); ``../shared/MODEL.md`` ("Envelope (terminations) and reset bounds
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import jax
 import jax.numpy as jnp
@@ -23,43 +22,22 @@ import numpy as np
 from flax import struct
 
 from harv_jax.aircraft.params import DEFAULT_THROTTLE, AircraftParams, harv
+from harv_jax.aircraft.randomize import default_aircraft_randomization
+from harv_jax.task.criteria import RECOVERED_TOL, Envelope, default_envelope
+from harv_jax.task.scenarios import RESET_HIGH, RESET_LOW
+from harv_jax.task.spec import (
+    ALPHA_TARGET_BOUNDS_RAD,
+    BETA_TARGET_RAD,
+    DT_S,
+    H0_FT,
+    H_FLOOR_FT,
+    MU_TARGET_RAD,
+)
 from harv_jax.units import RAD_PER_DEG
 
-#: Names of the observation components, in order (paper: s = {V, alpha, beta, p, q, r, mu, gamma,
-#: alpha_d, beta_d, mu_d}); units ft/s, rad, rad/s.
-OBS_NAMES: tuple[str, ...] = (
-    "V", "alpha", "beta", "p", "q", "r", "mu", "gamma", "alpha_d", "beta_d", "mu_d",
-)  # fmt: skip
-OBSERVATION_SIZE = len(OBS_NAMES)
-ACTION_SIZE = 3
-#: Number of leading observation components that are measured (sensor noise applies to them).
-NUM_MEASURED = 8
-
-_PI = math.pi
-_RATE_MAX_RADPS = 10.0 * _PI
-#: Observation bounds (paper Table "Observation and Action Space"); the targets get the alpha range
-#: (alpha_d) and [-pi, pi] (beta_d, mu_d). Observations are clipped to these bounds, so they only bind
-#: on a terminal observation (the envelope below is the same box) or through sensor noise at the edge.
-OBS_LOW = np.array(
-    [0.0, -0.244, -_PI, -_RATE_MAX_RADPS, -_RATE_MAX_RADPS, -_RATE_MAX_RADPS, -_PI, -1.745,
-     -0.244, -_PI, -_PI], dtype=np.float32,
-)  # fmt: skip
-OBS_HIGH = np.array(
-    [2000.0, 1.571, _PI, _RATE_MAX_RADPS, _RATE_MAX_RADPS, _RATE_MAX_RADPS, _PI, 1.745,
-     1.571, _PI, _PI], dtype=np.float32,
-)  # fmt: skip
-
-#: Default initial altitude, ft. The paper starts its altitude record at 0 ft only to show the loss of
-#: altitude; the model needs a true altitude for the air density, and 25,000 ft is MODEL.md's reference.
-DEFAULT_H0_FT = 25_000.0
-#: Default altitude floor, ft: the ground. The paper has no floor; set ``h_floor_ft=-inf`` to disable.
-DEFAULT_H_FLOOR_FT = 0.0
-
 #: Placeholder spin-entry state (wind axes [10]): level trim at 400 ft/s, 25,000 ft (MODEL.md trim table,
-#: alpha = 11.1793 deg). Replaced by real spin-entry states from ``harv_jax.scenarios`` by the caller.
-PLACEHOLDER_SPIN_STATE = np.array(
-    [400.0, 11.1793 * RAD_PER_DEG, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, DEFAULT_H0_FT]
-)
+#: alpha = 11.1793 deg). Replaced by real spin-entry states from ``harv_jax.task.spin_bank`` by the caller.
+PLACEHOLDER_SPIN_STATE = np.array([400.0, 11.1793 * RAD_PER_DEG, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, H0_FT])
 #: Default half-widths of the uniform perturbation added to a spin-entry state, same order and units
 #: as the wind-axis state: V 10 ft/s; alpha, beta 0.02 rad; p, q, r 0.05 rad/s; mu, gamma 0.02 rad;
 #: chi and h unperturbed.
@@ -83,13 +61,13 @@ class EnvConfig:
         discount: default PBRS discount Gamma (= the PPO discount; paper 0.99).
     """
 
-    dt_s: float = 0.01
+    dt_s: float = DT_S
     episode_steps: int = 20_000
     max_delay_steps: int = 3
     domain_randomization: bool = True
     throttle: float = DEFAULT_THROTTLE
-    h0_ft: float = DEFAULT_H0_FT
-    h_floor_ft: float = DEFAULT_H_FLOOR_FT
+    h0_ft: float = H0_FT
+    h_floor_ft: float = H_FLOOR_FT
     discount: float = 0.99
 
     def __post_init__(self) -> None:
@@ -162,11 +140,6 @@ class RewardParams:
     mu_gamma_hi_rad: jnp.ndarray
 
 
-#: Tolerances of the recovery criterion (|e_alpha|, |e_beta|, |e_mu| rad; ||omega|| rad/s): 2 deg, 1 deg,
-#: 2 deg, 0.17 rad/s, the Monte Carlo's criterion (``harv_jax.evaluation.metrics.default_criterion``).
-RECOVERED_TOL = np.array([2.0 * RAD_PER_DEG, 1.0 * RAD_PER_DEG, 2.0 * RAD_PER_DEG, 0.17])
-
-
 def paper_reward_params(discount: float = 0.99, dtype=None) -> RewardParams:
     """The paper's reward weights (Section IV-A)."""
 
@@ -191,15 +164,9 @@ class RandomizationParams:
     of uniform draws of multiplicative factors ``1 + frac * U(-1, 1)`` unless stated.
 
     Attributes:
-        mass_on: randomize mass and inertias.
-        mass_frac: mass factor half-width (default 0.10, i.e. +-10%).
-        inertia_frac: Ixx, Iyy, Izz, Ixz factor half-width, each independent (default 0.10).
-        aero_on: randomize aero-table column multipliers (``AircraftParams.aero_scale``).
-        aero_damping_frac: rate-derivative columns (cy_p, cy_r, croll_p, croll_r, cn_p, cn_r, cd_q,
-            clift_q, cm_q), default 0.20.
-        aero_control_frac: control-effectiveness columns (all *_da, *_del/_der, *_dr), default 0.15.
-        aero_static_frac: static-stability columns (cy_b, croll_b, cn_b, cm0), default 0.10.
-        aero_basic_frac: basic lift and drag (clift0, cd0), default 0.05.
+        mass_on, mass_frac, inertia_frac, aero_on, aero_damping_frac, aero_control_frac, aero_static_frac,
+            aero_basic_frac: the aircraft draws, as ``aircraft.randomize.AircraftRandomization`` (same
+            fields and defaults; this pytree can be passed wherever that one is asked for).
         gust_on: body-axis Ornstein-Uhlenbeck gust.
         gust_std_max_fps: per-episode stationary gust std per axis ~ U(0, this), ft/s (default 10).
         gust_tau_min_s, gust_tau_max_s: per-episode gust correlation time ~ U(min, max), s (default
@@ -236,17 +203,18 @@ DEFAULT_NOISE_STD_MAX = np.array([2.0, 0.005, 0.005, 0.01, 0.01, 0.01, 0.01, 0.0
 
 
 def default_randomization_params(enabled: bool = True, dtype=None) -> RandomizationParams:
-    """Documented default ranges; ``enabled`` sets every switch."""
+    """Documented default ranges (the aircraft's: ``aircraft.randomize``); ``enabled`` sets all switches."""
     dtype = dtype or jnp.result_type(float)
 
     def f(v):
         return jnp.asarray(v, dtype=dtype)
 
     on = jnp.asarray(enabled, dtype=bool)
+    ac = default_aircraft_randomization(enabled, dtype)
     return RandomizationParams(
-        mass_on=on, mass_frac=f(0.10), inertia_frac=f(0.10),
-        aero_on=on, aero_damping_frac=f(0.20), aero_control_frac=f(0.15), aero_static_frac=f(0.10),
-        aero_basic_frac=f(0.05),
+        mass_on=ac.mass_on, mass_frac=ac.mass_frac, inertia_frac=ac.inertia_frac,
+        aero_on=ac.aero_on, aero_damping_frac=ac.aero_damping_frac, aero_control_frac=ac.aero_control_frac,
+        aero_static_frac=ac.aero_static_frac, aero_basic_frac=ac.aero_basic_frac,
         gust_on=on, gust_std_max_fps=f(10.0), gust_tau_min_s=f(1.0), gust_tau_max_s=f(10.0),
         noise_on=on, noise_std_max=f(DEFAULT_NOISE_STD_MAX),
         delay_on=on, delay_max_steps=jnp.asarray(2, dtype=jnp.int32),
@@ -271,11 +239,6 @@ class ResetParams:
     mu_d_rad: jnp.ndarray
 
 
-#: Paper reset bounds for [V, alpha, beta, p, q, r, mu, gamma].
-RESET_LOW = np.array([100.0, -0.175, -0.262, -2.094, -1.047, -0.524, -3.142, -1.047])
-RESET_HIGH = np.array([1500.0, 1.047, 0.262, 2.094, 1.047, 0.524, 3.142, 1.047])
-
-
 def paper_reset_params(dtype=None) -> ResetParams:
     """The paper's reset bounds."""
 
@@ -283,42 +246,9 @@ def paper_reset_params(dtype=None) -> ResetParams:
         return jnp.asarray(v, dtype=dtype or jnp.result_type(float))
 
     return ResetParams(
-        low=f(RESET_LOW), high=f(RESET_HIGH), alpha_d_low_rad=f(-0.085), alpha_d_high_rad=f(0.68),
-        beta_d_rad=f(0.0), mu_d_rad=f(0.0),
-    )  # fmt: skip
-
-
-@struct.dataclass
-class EnvelopeParams:
-    """Flight envelope; leaving it terminates the episode (paper observation ranges). Traced.
-
-    Attributes:
-        v_min_fps, v_max_fps: terminate when V <= v_min or V > v_max (paper V in (0, 2000]).
-        alpha_min_rad, alpha_max_rad: terminate outside [alpha_min, alpha_max] (paper -0.244, 1.571).
-        rate_max_radps: terminate when any |p|, |q|, |r| > this (paper 10 pi).
-        gamma_max_rad: terminate when |gamma| > this (paper 1.745). Note: gamma from ``to_wind`` lies in
-            [-pi/2, pi/2], so the paper's bound cannot bind; it is kept for fidelity and for lower values.
-        h_floor_ft: terminate when h < this, ft (default 0 = ground; -inf disables).
-    """
-
-    v_min_fps: jnp.ndarray
-    v_max_fps: jnp.ndarray
-    alpha_min_rad: jnp.ndarray
-    alpha_max_rad: jnp.ndarray
-    rate_max_radps: jnp.ndarray
-    gamma_max_rad: jnp.ndarray
-    h_floor_ft: jnp.ndarray
-
-
-def paper_envelope_params(h_floor_ft: float = DEFAULT_H_FLOOR_FT, dtype=None) -> EnvelopeParams:
-    """The paper's envelope plus an altitude floor."""
-
-    def f(v):
-        return jnp.asarray(v, dtype=dtype or jnp.result_type(float))
-
-    return EnvelopeParams(
-        v_min_fps=f(0.0), v_max_fps=f(2000.0), alpha_min_rad=f(-0.244), alpha_max_rad=f(1.571),
-        rate_max_radps=f(_RATE_MAX_RADPS), gamma_max_rad=f(1.745), h_floor_ft=f(h_floor_ft),
+        low=f(RESET_LOW), high=f(RESET_HIGH), alpha_d_low_rad=f(ALPHA_TARGET_BOUNDS_RAD[0]),
+        alpha_d_high_rad=f(ALPHA_TARGET_BOUNDS_RAD[1]), beta_d_rad=f(BETA_TARGET_RAD),
+        mu_d_rad=f(MU_TARGET_RAD),
     )  # fmt: skip
 
 
@@ -344,7 +274,7 @@ class EnvParams:
     reward: RewardParams
     randomization: RandomizationParams
     reset: ResetParams
-    envelope: EnvelopeParams
+    envelope: Envelope
     h0_ft: jnp.ndarray
     spin_states: jnp.ndarray
     spin_delta_rad: jnp.ndarray
@@ -386,7 +316,7 @@ def default_params(config: EnvConfig | None = None, dtype=None) -> EnvParams:
         reward=paper_reward_params(config.discount, dtype),
         randomization=default_randomization_params(True, dtype),
         reset=paper_reset_params(dtype),
-        envelope=paper_envelope_params(config.h_floor_ft, dtype),
+        envelope=default_envelope(config.h_floor_ft, dtype),
         h0_ft=f(config.h0_ft),
         spin_states=f(spin[None, :]),
         spin_delta_rad=f(np.zeros((1, 3))),

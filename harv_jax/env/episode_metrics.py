@@ -13,14 +13,13 @@ import jax
 import jax.numpy as jnp
 
 from harv_jax.dynamics.state import WIND_INDEX
-from harv_jax.env.config import OBS_NAMES
-from harv_jax.units import RAD_PER_DEG
+from harv_jax.task.spaces import OBS_NAMES
+from harv_jax.task.spec import RECOVERY_ALPHA_TOL_RAD as ALPHA_TOL_RAD
+from harv_jax.task.spec import RECOVERY_BETA_TOL_RAD as BETA_TOL_RAD
+from harv_jax.task.spec import RECOVERY_MU_TOL_RAD as MU_TOL_RAD
+from harv_jax.task.spec import RECOVERY_OMEGA_TOL_RADPS as OMEGA_TOL_RADPS
 
-#: Recovery tolerances used for the training-time recovery metric (the issue's criterion, instantaneous).
-ALPHA_TOL_RAD = 2.0 * RAD_PER_DEG
-BETA_TOL_RAD = 1.0 * RAD_PER_DEG
-MU_TOL_RAD = 2.0 * RAD_PER_DEG
-OMEGA_TOL_RADPS = 0.17
+#: The recovery tolerances of the training-time metric are the criterion's (``task.spec``), instantaneous.
 
 _OBS_INDEX = {n: i for i, n in enumerate(OBS_NAMES)}
 _I_ALPHA, _I_BETA, _I_MU = WIND_INDEX["alpha"], WIND_INDEX["beta"], WIND_INDEX["mu"]

@@ -25,14 +25,17 @@ import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
 
-from harv_jax.env.config import ACTION_SIZE, OBS_HIGH, OBS_LOW, OBSERVATION_SIZE, EnvConfig, EnvParams
-from harv_jax.env.recovery import EnvState, TerminationFlags, make_env
+from harv_jax.env.config import EnvConfig, EnvParams
+from harv_jax.env.recovery import EnvState, make_env
 from harv_jax.env.reward import RewardTerms
+from harv_jax.env.termination import TerminationFlags
+from harv_jax.task.spaces import ACTION_SIZE, OBS_HIGH, OBS_LOW, OBSERVATION_SIZE
+from harv_jax.task.spec import ALPHA_TARGET_RAD, BETA_TARGET_RAD, MU_TARGET_RAD
 
 _SEED_HIGH = 2**31 - 1
 #: Default target of ``reset(options={"wind_state": ...})``: alpha_d = 20 deg (the paper's Monte Carlo
-#: target, 0.349 rad), beta_d = mu_d = 0.
-DEFAULT_EVAL_TARGET_RAD = (0.349, 0.0, 0.0)
+#: target, ``task.spec.ALPHA_TARGET_RAD``), beta_d = mu_d = 0.
+DEFAULT_EVAL_TARGET_RAD = (ALPHA_TARGET_RAD, BETA_TARGET_RAD, MU_TARGET_RAD)
 
 
 class HarvRecoveryEnv(gym.Env):
@@ -118,7 +121,7 @@ class HarvRecoveryEnv(gym.Env):
             seed: seeds ``np_random``, which draws the episode's JAX key.
             options: optional ``{"wind_state": [10], "target_rad": [3]}`` to start at a given
                 wind-axis state [V, alpha, beta, p, q, r, mu, gamma, chi, h] (ft/s, rad, rad/s, ft) and
-                target [alpha_d, beta_d, mu_d] (default target [0.349, 0, 0] = the paper's 20 deg);
+                target [alpha_d, beta_d, mu_d] (default ``DEFAULT_EVAL_TARGET_RAD``, the paper's 20 deg);
                 without it the state and target are drawn from the reset bounds.
         """
         super().reset(seed=seed)

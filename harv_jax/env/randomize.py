@@ -1,4 +1,5 @@
-"""Per-episode domain randomization: aircraft parameters, gust, sensor noise, actuator delay.
+"""Per-episode domain randomization: the aircraft (``harv_jax.aircraft.randomize``), gust, sensor noise,
+actuator delay.
 
 Everything drawn here lives in an ``EpisodeParams`` pytree held in the env state, so new draws never
 recompile; the env draws a fresh one at every reset (every episode, not once per env slot).
@@ -15,12 +16,7 @@ Draws (``RandomizationParams`` holds the switches and ranges; defaults documente
 | actuator delay, steps       | randint(0, delay_max_steps) inclusive, capped             |
 
 The env draws all of these from 16-bit uniforms (``uniform16``: two per PRNG word, resolution 1/65536).
-
-Aero groups (columns of ``AERO_COLUMNS``): damping = rate derivatives; control = control-surface
-derivatives (the symmetric-stabilator pair *_del/*_der gets one common factor, so that the published
-cancellation cn_del + cn_der ~ 0 at low alpha is kept); static = cy_b, croll_b, cn_b, cm0; basic =
-clift0, cd0. Independent inertia factors can break the triangle inequality Ixx + Iyy >= Izz (the
-tensor stays positive definite; the equations of motion remain well defined).
+The aircraft groups and ranges are documented in ``harv_jax.aircraft.randomize``.
 
 Gust: a first-order Gauss-Markov (Ornstein-Uhlenbeck) process per body axis, the first-order
 approximation of the Dryden spectrum, stepped exactly:
@@ -32,36 +28,17 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 from flax import struct
 
-from harv_jax.aircraft.data_harv import AERO_COLUMNS
 from harv_jax.aircraft.params import AircraftParams
-from harv_jax.env.config import NUM_MEASURED, RandomizationParams
-
-_DAMPING = ("cy_p", "cy_r", "croll_p", "croll_r", "cn_p", "cn_r", "cd_q", "clift_q", "cm_q")
-_STATIC = ("cy_b", "croll_b", "cn_b", "cm0")
-_BASIC = ("clift0", "cd0")
-_CONTROL = tuple(c for c in AERO_COLUMNS if c not in _DAMPING + _STATIC + _BASIC)
-#: Aero-scale groups: name -> column names. Together they cover every column exactly once.
-AERO_GROUPS: dict[str, tuple[str, ...]] = {
-    "damping": _DAMPING,
-    "control": _CONTROL,
-    "static": _STATIC,
-    "basic": _BASIC,
-}
-assert sorted(sum(AERO_GROUPS.values(), ())) == sorted(AERO_COLUMNS)
-assert all(c.endswith(("_da", "_del", "_der", "_dr")) for c in _CONTROL)
-
-_COL = {c: i for i, c in enumerate(AERO_COLUMNS)}
-#: [33] group index of each column (0 damping, 1 control, 2 static, 3 basic).
-_GROUP_OF_COLUMN = np.array(
-    [next(g for g, cols in enumerate(AERO_GROUPS.values()) if c in cols) for c in AERO_COLUMNS]
+from harv_jax.aircraft.randomize import (
+    NUM_AIRCRAFT_UNIFORMS,
+    SAMPLE_UNIFORMS,
+    aircraft_from_uniform,
+    uniform16,
 )
-#: [33] source column of each column's factor: *_der takes its *_del partner's factor.
-_FACTOR_SOURCE = np.array(
-    [_COL[c[: -len("_der")] + "_del"] if c.endswith("_der") else _COL[c] for c in AERO_COLUMNS]
-)
+from harv_jax.env.config import RandomizationParams
+from harv_jax.task.spaces import NUM_MEASURED
 
 
 @struct.dataclass
@@ -96,26 +73,12 @@ def nominal_episode(nominal: AircraftParams, rand: RandomizationParams) -> Episo
     )
 
 
-#: Number of U(0, 1) draws ``episode_from_uniform`` consumes: mass 1, inertia 4, aero 33, delay 1,
-#: gust std 1, gust tau 1, noise 1.
-NUM_EPISODE_UNIFORMS = 1 + 4 + len(AERO_COLUMNS) + 4
+#: Number of U(0, 1) draws ``episode_from_uniform`` consumes: the aircraft's (mass 1, inertia 4, aero 33),
+#: delay 1, gust std 1, gust tau 1, noise 1.
+NUM_EPISODE_UNIFORMS = NUM_AIRCRAFT_UNIFORMS + 4
+assert NUM_EPISODE_UNIFORMS == SAMPLE_UNIFORMS  # aircraft.randomize.sample_aircraft draws the same stream
 #: Number of N(0, 1) draws per step: gust 3, sensor noise NUM_MEASURED.
 NUM_STEP_NORMALS = 3 + NUM_MEASURED
-
-
-def _sym(u01: jnp.ndarray) -> jnp.ndarray:
-    """U(0, 1) -> U(-1, 1)."""
-    return 2.0 * u01 - 1.0
-
-
-def aero_scale_from_uniform(u01: jnp.ndarray, rand: RandomizationParams) -> jnp.ndarray:
-    """[33] aero-table multipliers from [33] U(0, 1) draws (ones when ``aero_on`` is False)."""
-    fracs = jnp.stack(
-        [rand.aero_damping_frac, rand.aero_control_frac, rand.aero_static_frac, rand.aero_basic_frac]
-    )
-    u = _sym(u01)[_FACTOR_SOURCE]
-    scale = 1.0 + fracs[_GROUP_OF_COLUMN] * u
-    return jnp.where(rand.aero_on, scale, jnp.ones_like(scale))
 
 
 def episode_from_uniform(
@@ -135,20 +98,9 @@ def episode_from_uniform(
     Returns:
         EpisodeParams (switched-off items at their nominal values).
     """
-    n_aero = len(AERO_COLUMNS)
-    u_mass, u_inertia, u_aero = u01[0], u01[1:5], u01[5 : 5 + n_aero]
-    u_delay, u_gstd, u_gtau, u_noise = (u01[5 + n_aero + i] for i in range(4))
-    one = jnp.ones_like(u_mass)
-    mass_factor = jnp.where(rand.mass_on, 1.0 + rand.mass_frac * _sym(u_mass), one)
-    inertia = jnp.where(rand.mass_on, 1.0 + rand.inertia_frac * _sym(u_inertia), jnp.ones_like(u_inertia))
-    aircraft = nominal.replace(
-        mass_slug=nominal.mass_slug * mass_factor,
-        Ixx=nominal.Ixx * inertia[0],
-        Iyy=nominal.Iyy * inertia[1],
-        Izz=nominal.Izz * inertia[2],
-        Ixz=nominal.Ixz * inertia[3],
-        aero_scale=nominal.aero_scale * aero_scale_from_uniform(u_aero, rand),
-    )
+    n_ac = NUM_AIRCRAFT_UNIFORMS
+    aircraft = aircraft_from_uniform(u01[:n_ac], nominal, rand)
+    u_delay, u_gstd, u_gtau, u_noise = (u01[n_ac + i] for i in range(4))
     delay_hi = jnp.clip(rand.delay_max_steps, 0, max_delay_steps)
     delay = jnp.minimum(jnp.floor(u_delay * (delay_hi + 1)).astype(jnp.int32), delay_hi)
     delay = jnp.where(rand.delay_on, delay, 0).astype(jnp.int32)
@@ -162,19 +114,6 @@ def episode_from_uniform(
         gust_tau_s=gust_tau,
         noise_std=jnp.where(rand.noise_on, noise_std, jnp.zeros_like(noise_std)),
     )
-
-
-def uniform16(key: jax.Array, n: int, dtype=None) -> jnp.ndarray:
-    """[n] U(0, 1) draws at 16-bit resolution, two per 32-bit PRNG word.
-
-    Values are (k + 0.5) / 65536 for k in 0..65535: strictly inside (0, 1). With jax's (default)
-    partitionable threefry every drawn element costs one hash block whatever its width, so packing two
-    16-bit draws in each 32-bit word halves the PRNG work, which dominates the cost of a reset.
-    """
-    dtype = dtype or jnp.result_type(float)
-    words = jax.random.bits(key, ((n + 1) // 2,), dtype=jnp.uint32)
-    halves = jnp.concatenate([words >> 16, words & 0xFFFF])[:n]
-    return (halves.astype(dtype) + 0.5) / 65536.0
 
 
 def sample_episode(

@@ -7,16 +7,16 @@
 
 Observation [11] (physical units, from ``to_wind`` of the true state, plus sensor noise when enabled):
 [V ft/s, alpha, beta, p, q, r, mu, gamma, alpha_d, beta_d, mu_d] (rad, rad/s). NaNs are replaced by 0
-and every component is clipped to the paper's observation box (``OBS_LOW``/``OBS_HIGH``); inside the
+and every component is clipped to the paper's observation box (``task.spaces.OBS_LOW``/``OBS_HIGH``); inside
+the
 envelope the clip only touches noise at the edges. Action [3] in [-1, 1] (clipped), mapped affinely to
 [u_min, u_max] per channel (de, da, dr); the actuator model adds rate limits (and the delay).
 
-One step: delayed command -> ``actuator_step`` -> ``rk4_body_step`` with the body-axis gust ->
-``to_wind`` (once) -> terminations, reward terms, observation. Reward: see ``harv_jax.env.reward``.
+One step: delayed command -> ``dynamics.plant.plant_step`` (actuator -> RK4 with the body-axis gust ->
+``to_wind``, once) -> terminations, reward terms, observation. Reward: see ``harv_jax.env.reward``.
 
-Terminations (``done`` and ``info['terminated']``; reward = terminal_reward - sigma_t): non-finite state,
-V outside (v_min, v_max], alpha outside [alpha_min, alpha_max], any |p|, |q|, |r| > rate_max, |gamma| >
-gamma_max, h < h_floor. The time limit ``episode_steps`` is a truncation (``done`` and
+Terminations (``done`` and ``info['terminated']``; reward = terminal_reward - sigma_t): see
+``harv_jax.env.termination``. The time limit ``episode_steps`` is a truncation (``done`` and
 ``info['truncation']``, never both flags): bootstrap from ``info['final_obs']``.
 
 Auto-reset (``step``): when ``done``, the returned ``obs`` and ``state`` are the *new* episode's first
@@ -55,20 +55,35 @@ import jax.numpy as jnp
 from flax import struct
 
 from harv_jax.aircraft.aero import wrap_angle_rad
-from harv_jax.dynamics import BodyState, actuator_step, from_wind, is_finite, rk4_body_step, to_wind
+from harv_jax.dynamics import BodyState, from_wind, is_finite, plant_step
+from harv_jax.dynamics.state import WIND_INDEX
 from harv_jax.env import randomize, reward
-from harv_jax.env.config import (
+from harv_jax.env.config import EnvConfig, EnvParams, default_params
+from harv_jax.env.randomize import EpisodeParams
+from harv_jax.env.termination import termination_flags
+from harv_jax.task.spaces import (
     ACTION_SIZE,
     NUM_MEASURED,
-    OBS_HIGH,
-    OBS_LOW,
     OBSERVATION_SIZE,
-    EnvConfig,
-    EnvelopeParams,
-    EnvParams,
-    default_params,
+    action_to_command,
+    clean_observation,
+    command_to_action,
+    finish_observation,
 )
-from harv_jax.env.randomize import EpisodeParams
+
+_MU, _CHI = WIND_INDEX["mu"], WIND_INDEX["chi"]
+#: Uniform draws of a reset's initial state: the 8 reset-bound components, the spin index (1), the spin
+#: perturbation (10 = the wind state) and the spin choice (1).
+_N_RESET_STATE = 8
+_U_SPIN_INDEX = _N_RESET_STATE
+_U_SPIN_PERTURB = slice(_U_SPIN_INDEX + 1, _U_SPIN_INDEX + 1 + 10)
+_U_SPIN_CHOICE = _U_SPIN_PERTURB.stop
+
+
+def _wrap_angles(x_wind: jnp.ndarray) -> jnp.ndarray:
+    """mu and chi of a wind-axis state [10] wrapped to (-pi, pi]."""
+    return x_wind.at[_MU].set(wrap_angle_rad(x_wind[_MU])).at[_CHI].set(wrap_angle_rad(x_wind[_CHI]))
+
 
 observation_size = OBSERVATION_SIZE
 action_size = ACTION_SIZE
@@ -99,62 +114,6 @@ class EnvState:
     step: jnp.ndarray
     potential: jnp.ndarray
     episode: EpisodeParams
-
-
-class TerminationFlags(NamedTuple):
-    """Why an episode terminated (bool scalars); ``any`` is the termination."""
-
-    nonfinite: jnp.ndarray
-    speed: jnp.ndarray
-    alpha: jnp.ndarray
-    rates: jnp.ndarray
-    gamma: jnp.ndarray
-    altitude: jnp.ndarray
-
-    @property
-    def any(self) -> jnp.ndarray:
-        return self.nonfinite | self.speed | self.alpha | self.rates | self.gamma | self.altitude
-
-
-def termination_flags(x_wind: jnp.ndarray, finite: jnp.ndarray, envelope: EnvelopeParams) -> TerminationFlags:
-    """Envelope checks on a wind-axis state [10] (``finite``: the integration state is finite).
-
-    Comparisons with NaN are False, so a non-finite state raises only ``nonfinite``.
-    """
-    vt, alpha, pqr, gamma, h = x_wind[0], x_wind[1], x_wind[3:6], x_wind[7], x_wind[9]
-    return TerminationFlags(
-        nonfinite=~finite,
-        speed=(vt <= envelope.v_min_fps) | (vt > envelope.v_max_fps),
-        alpha=(alpha < envelope.alpha_min_rad) | (alpha > envelope.alpha_max_rad),
-        rates=jnp.any(jnp.abs(pqr) > envelope.rate_max_radps),
-        gamma=jnp.abs(gamma) > envelope.gamma_max_rad,
-        altitude=h < envelope.h_floor_ft,
-    )
-
-
-def action_to_command(action: jnp.ndarray, u_min_rad: jnp.ndarray, u_max_rad: jnp.ndarray) -> jnp.ndarray:
-    """Affine map of a normalized action [3] in [-1, 1] to deflections in [u_min, u_max], rad."""
-    return u_min_rad + 0.5 * (action + 1.0) * (u_max_rad - u_min_rad)
-
-
-def command_to_action(cmd_rad: jnp.ndarray, u_min_rad: jnp.ndarray, u_max_rad: jnp.ndarray) -> jnp.ndarray:
-    """Inverse of :func:`action_to_command`: deflections [3], rad -> normalized action [3]."""
-    return 2.0 * (cmd_rad - u_min_rad) / (u_max_rad - u_min_rad) - 1.0
-
-
-def clean_observation(x_wind: jnp.ndarray, target_rad: jnp.ndarray) -> jnp.ndarray:
-    """[11] observation of a wind-axis state and target without noise or clipping."""
-    return jnp.concatenate([x_wind[:NUM_MEASURED], target_rad])
-
-
-def _finish_obs(obs: jnp.ndarray) -> jnp.ndarray:
-    obs = jnp.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
-    return jnp.clip(obs, jnp.asarray(OBS_LOW, obs.dtype), jnp.asarray(OBS_HIGH, obs.dtype))
-
-
-def observation(x_wind: jnp.ndarray, target_rad: jnp.ndarray) -> jnp.ndarray:
-    """[11] noise-free observation as the policy sees it in the env (non-finite -> 0, clipped to the box)."""
-    return _finish_obs(clean_observation(x_wind, target_rad))
 
 
 class Env(NamedTuple):
@@ -204,7 +163,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
     # ``reset`` and ``step_no_reset`` make one PRNG draw each (``step`` adds one split): every PRNG call
     # site compiles its own hash (compile time), and with jax's partitionable threefry every drawn
     # element costs a hash block (run time; hence the 16-bit pairs of ``randomize.uniform16``).
-    n_init_u = 8 + 1 + 10 + 1 + 1
+    n_init_u = _U_SPIN_CHOICE + 1 + 1
     n_normal_u = 2 * ((randomize.NUM_STEP_NORMALS + 1) // 2)
     n_reset_u = n_init_u + ((randomize.NUM_EPISODE_UNIFORMS + n_normal_u) if dr else 0)
     n_step_u = n_normal_u if dr else 0
@@ -213,22 +172,22 @@ def make_env(config: EnvConfig | None = None) -> Env:
         """Initial wind-axis state [10] and deflections [3] from ``n_init_u - 1`` U(0, 1) draws."""
         rp = params.reset
         x_uniform = jnp.concatenate(
-            [rp.low + (rp.high - rp.low) * u01[:8], 0.0 * u01[:1], params.h0_ft[None]]
-        )
+            [rp.low + (rp.high - rp.low) * u01[:_N_RESET_STATE], 0.0 * u01[:1], params.h0_ft[None]]
+        )  # chi = 0, h = h0
         n_spin = params.spin_states.shape[0]
-        idx = jnp.minimum(jnp.floor(u01[8] * n_spin).astype(jnp.int32), n_spin - 1)
-        x_spin = params.spin_states[idx] + params.spin_perturb * (2.0 * u01[9:19] - 1.0)
-        use_spin = u01[19] < params.spin_reset_prob
+        idx = jnp.minimum(jnp.floor(u01[_U_SPIN_INDEX] * n_spin).astype(jnp.int32), n_spin - 1)
+        x_spin = params.spin_states[idx] + params.spin_perturb * (2.0 * u01[_U_SPIN_PERTURB] - 1.0)
+        use_spin = u01[_U_SPIN_CHOICE] < params.spin_reset_prob
         x0 = jnp.where(use_spin, x_spin, x_uniform)
         delta0 = jnp.where(use_spin, params.spin_delta_rad[idx], jnp.zeros_like(params.spin_delta_rad[idx]))
         # canonical angles so that the observation equals to_wind(from_wind(x0))
-        return x0.at[6].set(wrap_angle_rad(x0[6])).at[8].set(wrap_angle_rad(x0[8])), delta0
+        return _wrap_angles(x0), delta0
 
     def _observe(noise8: jnp.ndarray | None, x_wind: jnp.ndarray, target_rad: jnp.ndarray, ep: EpisodeParams):
         obs = clean_observation(x_wind, target_rad)
         if noise8 is not None:
             obs = obs.at[:NUM_MEASURED].add(randomize.sensor_noise(noise8, ep))
-        return _finish_obs(obs)
+        return finish_observation(obs)
 
     def _uniform(key: jax.Array, n: int, params: EnvParams) -> jnp.ndarray:
         dtype = params.reset.low.dtype
@@ -246,7 +205,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
             x0, delta0 = _initial_wind(u01[: n_init_u - 1], params)
         else:
             x0 = jnp.asarray(x0, dtype=dtype)
-            x0 = x0.at[6].set(wrap_angle_rad(x0[6])).at[8].set(wrap_angle_rad(x0[8]))
+            x0 = _wrap_angles(x0)
         if target is None:
             rp = params.reset
             alpha_d = rp.alpha_d_low_rad + (rp.alpha_d_high_rad - rp.alpha_d_low_rad) * u01[n_init_u - 1]
@@ -298,15 +257,15 @@ def make_env(config: EnvConfig | None = None) -> Env:
         a = jnp.clip(action, -1.0, 1.0)
         cmd = action_to_command(a, ac.u_min_rad, ac.u_max_rad)
         buffer = jnp.concatenate([cmd[None], state.cmd_buffer_rad[:-1]], axis=0)
-        delta = actuator_step(state.delta_rad, buffer[ep.delay_steps], ac, dt_s)
-        body = rk4_body_step(state.aircraft, delta, ac, dt_s, state.gust_fps)
+        body, delta, x = plant_step(
+            state.aircraft, state.delta_rad, buffer[ep.delay_steps], ac, dt_s, state.gust_fps
+        )
         if dr:
             normals = randomize.normals_from_uniform(u01)
             gust = randomize.gust_step(state.gust_fps, ep, dt_s, normals[:3])
             noise8 = normals[3 : 3 + NUM_MEASURED]
         else:
             gust, noise8 = state.gust_fps, None
-        x = to_wind(body)
         finite = is_finite(body) & jnp.all(jnp.isfinite(x))
         flags = termination_flags(x, finite, params.envelope)
         terminated = flags.any

@@ -9,6 +9,8 @@
 | eps         | logistic blend 1 / (1 + exp(k (||omega|| - omega_th)))         | -      |
 | sigma       | PBRS potential -e_alpha^2 - w_p21 ||omega||^2                  | -      |
 
+The errors are ``harv_jax.task.criteria.tracking_errors`` (the evaluation's).
+
     r_phase1 = -||omega||^2 - w_p1 coupling
     r_phase2 = -e_alpha^2 - w_p21 e_alpha q - w_p22 (||omega||^2 + coupling)
     r_raw    = (1 - eps) r_phase1 + eps r_phase2
@@ -49,8 +51,9 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from harv_jax.aircraft.aero import wrap_angle_rad
+from harv_jax.dynamics.state import alpha_rad, gamma_rad, omega_radps
 from harv_jax.env.config import RewardParams
+from harv_jax.task.criteria import tracking_errors
 
 
 class RewardTerms(NamedTuple):
@@ -83,17 +86,6 @@ def coupling(pqr_radps: jnp.ndarray) -> jnp.ndarray:
     """Cross-coupling |pq| + |qr| + |pr|, rad^2/s^2, of body rates [3]."""
     p, q, r = pqr_radps[..., 0], pqr_radps[..., 1], pqr_radps[..., 2]
     return jnp.abs(p * q) + jnp.abs(q * r) + jnp.abs(p * r)
-
-
-def tracking_errors(x_wind: jnp.ndarray, target_rad: jnp.ndarray) -> jnp.ndarray:
-    """[e_alpha, e_beta, e_mu], rad, of a wind-axis state [10] and a target [alpha_d, beta_d, mu_d].
-
-    e_mu is wrapped to (-pi, pi] (mu is an angle; mu = pi and mu = -pi are the same attitude).
-    """
-    e_alpha = x_wind[1] - target_rad[0]
-    e_beta = x_wind[2] - target_rad[1]
-    e_mu = wrap_angle_rad(x_wind[6] - target_rad[2])
-    return jnp.stack([e_alpha, e_beta, e_mu])
 
 
 def phase1(pqr_radps: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
@@ -178,7 +170,7 @@ def shaping(potential_next: jnp.ndarray, potential_prev: jnp.ndarray, params: Re
 
 def state_potential(x_wind: jnp.ndarray, target_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
     """sigma of a wind-axis state [10] for a target [3]."""
-    return potential(x_wind[1] - target_rad[0], x_wind[3:6], params)
+    return potential(alpha_rad(x_wind) - target_rad[0], omega_radps(x_wind), params)
 
 
 def reward_terms(
@@ -205,14 +197,14 @@ def reward_terms(
         (RewardTerms, sigma_{t+1}); sigma_{t+1} is the potential of x_wind (not zeroed on termination;
         it may be non-finite there; the env replaces the state on termination anyway).
     """
-    pqr = x_wind[3:6]
+    pqr = omega_radps(x_wind)
     errors = tracking_errors(x_wind, target_rad)
     e_alpha = errors[0]
     eps = blend(jnp.sqrt(omega_norm_sq(pqr)), params)
     r1 = phase1(pqr, params)
     r2 = phase2(e_alpha, pqr, params)
     r_raw = params.raw_weight * ((1.0 - eps) * r1 + eps * r2)  # raw_weight 1 (paper): x * 1.0 == x
-    w_mu = mu_weight(x_wind[7], params)  # exactly 1 at the paper's settings: x * 1.0 == x
+    w_mu = mu_weight(gamma_rad(x_wind), params)  # exactly 1 at the paper's settings: x * 1.0 == x
     channel_w = jnp.stack([jnp.ones_like(w_mu), jnp.ones_like(w_mu), w_mu])
     bonus = bonuses(errors, params) * channel_w
     r_action = action_penalty(action, params)

@@ -258,7 +258,7 @@ def build_spin_bank(config: EnvConfig, nested: dict[str, dict[str, Any]]) -> Any
     import jax
 
     from harv_jax.env.config import default_randomization_params
-    from harv_jax.spin_bank import make_spin_bank
+    from harv_jax.task.spin_bank import make_spin_bank
 
     spin = spin_settings(nested.get("spin"))
     if spin.reset_prob <= 0:
@@ -278,4 +278,4 @@ def bank_provenance(config: EnvConfig, nested: dict[str, dict[str, Any]]) -> dic
     spin = spin_settings(nested.get("spin"))
     return {"spin": dataclasses.asdict(spin), "dt_s": config.dt_s, "h0_ft": config.h0_ft,
             "randomization": nested.get("randomization", {}),
-            "made_by": "harv_jax.spin_bank.make_spin_bank"}  # fmt: skip
+            "made_by": "harv_jax.task.spin_bank.make_spin_bank"}  # fmt: skip

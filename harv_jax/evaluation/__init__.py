@@ -1,34 +1,19 @@
-"""Closed-loop evaluation: rollouts of a Controller, outcome codes and recovery metrics."""
+"""Closed-loop evaluation: owns the rollouts of a ``Controller`` on the flight model (``closed_loop``),
+the per-run metrics (``metrics``), the Monte Carlo (``monte_carlo``), the envelope maps (``envelope_map``),
+the empirical certificate (``certificate``) and the policy evaluation during training (``policy_eval``).
+The recovery criterion, envelope and outcome codes come from ``harv_jax.task.criteria``; ``evaluation``
+never imports ``env``."""
 
 from harv_jax.evaluation.closed_loop import ClosedLoopResult, Trajectory, closed_loop, evaluate
-from harv_jax.evaluation.metrics import (
-    OUTCOME_NAMES,
-    Envelope,
-    Outcome,
-    RecoveryCriterion,
-    RunMetrics,
-    compute_metrics,
-    default_criterion,
-    default_envelope,
-    recovered_mask,
-    tracking_errors,
-)
+from harv_jax.evaluation.metrics import RunMetrics, compute_metrics
 from harv_jax.evaluation.summary import summarize
 
 __all__ = [
-    "OUTCOME_NAMES",
     "ClosedLoopResult",
-    "Envelope",
-    "Outcome",
-    "RecoveryCriterion",
     "RunMetrics",
     "Trajectory",
     "closed_loop",
     "compute_metrics",
-    "default_criterion",
-    "default_envelope",
     "evaluate",
-    "recovered_mask",
     "summarize",
-    "tracking_errors",
 ]

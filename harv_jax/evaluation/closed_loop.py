@@ -4,8 +4,7 @@ One step (dt_s, controller at the plant rate):
 
     x_k      = to_wind(state_k)                               (the controller sees wind-axis states)
     u_k      = controller.apply(ctrl_state, x_k, reference, key_k)
-    delta_k+1 = actuator_step(delta_k, u_k, params, dt_s)      (position + rate limits, optional lag)
-    state_k+1 = rk4_body_step(state_k, delta_k+1, params, dt_s)  (singularity-free body form)
+    state_k+1, delta_k+1 = plant_step(state_k, delta_k, u_k, params, dt_s)  (actuator, RK4: dynamics.plant)
 
 Everything is vmappable over aircraft (``params``), initial states, references and keys; the number
 of steps is static. A non-finite command is replaced by the current deflection; a non-finite state
@@ -23,10 +22,11 @@ from flax import struct
 
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
-from harv_jax.dynamics.actuators import actuator_step
-from harv_jax.dynamics.integrate import DEFAULT_DT_S, rk4_body_step
+from harv_jax.dynamics.plant import plant_step
 from harv_jax.dynamics.state import BodyState, from_wind, is_finite, to_wind
-from harv_jax.evaluation.metrics import Envelope, RecoveryCriterion, RunMetrics, compute_metrics
+from harv_jax.evaluation.metrics import RunMetrics, compute_metrics
+from harv_jax.task.criteria import Envelope, RecoveryCriterion
+from harv_jax.task.spec import DT_S
 
 
 class Trajectory(struct.PyTreeNode):
@@ -78,7 +78,7 @@ def closed_loop(
     reference_rad: jnp.ndarray,
     key: jax.Array,
     n_steps: int,
-    dt_s: float = DEFAULT_DT_S,
+    dt_s: float = DT_S,
     delta0_rad: jnp.ndarray | None = None,
     record_every: int = 1,
     ctrl_state: Any = None,
@@ -119,8 +119,7 @@ def closed_loop(
         u, cstate_new, info = controller.apply(cstate, x, reference_rad, key_k)
         u_ok = jnp.all(jnp.isfinite(u))
         u = jnp.where(u_ok, u, delta)
-        delta_new = actuator_step(delta, u, params, dt_s)
-        state_new = rk4_body_step(state, delta_new, params, dt_s)
+        state_new, delta_new, _ = plant_step(state, delta, u, params, dt_s)
         s_ok = is_finite(state_new)
         state_new = jax.tree.map(lambda a, b: jnp.where(s_ok, a, b), state_new, state)
         rec = (x, delta_new, u, info)
@@ -163,7 +162,7 @@ def evaluate(
     reference_rad: jnp.ndarray,
     key: jax.Array,
     n_steps: int,
-    dt_s: float = DEFAULT_DT_S,
+    dt_s: float = DT_S,
     delta0_rad: jnp.ndarray | None = None,
     record_every: int = 1,
     criterion: RecoveryCriterion | None = None,
@@ -187,7 +186,7 @@ def score(
     res: ClosedLoopResult,
     reference_rad: jnp.ndarray,
     params: AircraftParams,
-    dt_s: float = DEFAULT_DT_S,
+    dt_s: float = DT_S,
     criterion: RecoveryCriterion | None = None,
     envelope: Envelope | None = None,
 ) -> tuple[RunMetrics, jnp.ndarray]:

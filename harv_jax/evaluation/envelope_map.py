@@ -17,7 +17,7 @@ Default fixed components (wind state, ft/s, rad, rad/s, ft):
 | mu    | 0      | as the paper's Monte Carlo (mu0 = gamma0 = 0)          |
 | gamma | 0      | as the paper's Monte Carlo                            |
 | chi   | 0      | irrelevant to the dynamics                            |
-| h     | 25,000 | ``scenarios.DEFAULT_H0_FT``                           |
+| h     | 25,000 | ``task.spec.H0_FT``                                   |
 
 Grid layout: maps are ``[n_y, n_x]`` (row = y value, column = x value, as ``imshow``/``pcolormesh``); the
 runs are the grid points in row-major order, run ``k`` = point ``(k // n_x, k % n_x)``.
@@ -37,7 +37,7 @@ from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
 from harv_jax.dynamics.state import WIND_INDEX, WIND_STATE_NAMES
 from harv_jax.evaluation.monte_carlo import MCInputs, MCRunOutput, run_mc
-from harv_jax.scenarios import DEFAULT_H0_FT, RESET_BOUNDS
+from harv_jax.task.spec import DT_S, H0_FT, RESET_BOUNDS, V_MAX_FPS
 from harv_jax.units import DEG_PER_RAD
 
 
@@ -73,7 +73,7 @@ GRID_AXES: dict[str, GridAxis] = {
 #: Initial-state components off the grid (see the module docstring), wind-state units.
 DEFAULT_FIXED_STATE: dict[str, float] = {
     "V": 800.0, "alpha": 0.436, "beta": 0.0, "p": 0.0, "q": 0.0, "r": 0.0,
-    "mu": 0.0, "gamma": 0.0, "chi": 0.0, "h": DEFAULT_H0_FT,
+    "mu": 0.0, "gamma": 0.0, "chi": 0.0, "h": H0_FT,
 }  # fmt: skip
 
 
@@ -160,7 +160,7 @@ def make_grid(
 
 
 #: Where an initial wind state is meaningful (state name -> open/closed bounds checked by _check_physical).
-_V_MAX_FPS = 2000.0
+_V_MAX_FPS = V_MAX_FPS
 _BETA_MAX_RAD = 1.5  # the wind->body change is singular at |beta| = pi/2
 
 
@@ -235,7 +235,7 @@ def run_envelope(
     grid: EnvelopeGrid,
     reference_rad: jnp.ndarray,
     n_steps: int,
-    dt_s: float = 0.01,
+    dt_s: float = DT_S,
     chunk_size: int = 250,
 ) -> tuple[EnvelopeMap, MCRunOutput, dict[str, float]]:
     """Fly ``controller`` from every grid point (one ``run_mc`` call; no trajectory history kept).

@@ -80,7 +80,7 @@ def envelope_study(
 
 def write_grid_csv(path: Path, grid: EnvelopeGrid, maps: dict[str, EnvelopeMap]) -> None:
     """One row per (controller, grid point): indices, the two grid values, outcome and metrics."""
-    from harv_jax.evaluation.metrics import OUTCOME_NAMES
+    from harv_jax.task.criteria import OUTCOME_NAMES
 
     xs, ys = grid.x_values, grid.y_values
     header = ["controller", "ix", "iy", grid.x_name, grid.y_name, "outcome", "recovered", "t_recover_s",
@@ -113,9 +113,9 @@ def write_grid_csv(path: Path, grid: EnvelopeGrid, maps: dict[str, EnvelopeMap])
 def write_envelope(out_dir: Path, study: EnvelopeStudy) -> None:
     """envelope_recovery.png, envelope_time.png, envelope_grid.npz, envelope_grid.csv and envelope.json."""
     from harv_jax.evaluation.envelope_map import GRID_AXES, grid_states
-    from harv_jax.evaluation.metrics import OUTCOME_NAMES
     from harv_jax.numfmt import write_json
     from harv_jax.plots.maps import plot_outcome_maps, plot_time_maps
+    from harv_jax.task.criteria import OUTCOME_NAMES
 
     doc, grid, maps = study.summary, study.grid, study.maps
     duration_s, alpha_deg = doc["duration_s"], np.degrees(doc["target_alpha_rad"])

@@ -79,7 +79,7 @@ def _runner(controller_name: str, options: ControllerOptions, n_steps: int):
 def _spin_runner(n_steps: int):
     import jax
 
-    from harv_jax.scenarios import open_loop, spin_controls_rad
+    from harv_jax.task.scenarios import open_loop, spin_controls_rad
 
     @functools.partial(jax.jit, compiler_options=FAST_COMPILE)
     def run(params, x0_wind):
@@ -133,7 +133,7 @@ def fly(
     from harv_jax.aircraft import harv
     from harv_jax.dynamics import WIND_STATE_NAMES, from_wind
     from harv_jax.evaluation.summary import metrics_to_dict
-    from harv_jax.scenarios import SPIN_CONTROLS_RAD, sample_table_states, spin_check, spin_entry_state
+    from harv_jax.task.scenarios import SPIN_CONTROLS_RAD, sample_table_states, spin_check, spin_entry_state
 
     params = harv()
     key = jax.random.key(seed)

@@ -90,7 +90,7 @@ def monte_carlo(
 def write_runs_csv(path: Path, x0: np.ndarray, outs: dict[str, MCRunOutput]) -> None:
     """One row per (controller, run): initial state, outcome, metrics."""
     from harv_jax.dynamics import WIND_STATE_NAMES
-    from harv_jax.evaluation.metrics import OUTCOME_NAMES
+    from harv_jax.task.criteria import OUTCOME_NAMES
 
     header = ["controller", "run"] + [f"{n}0" for n in WIND_STATE_NAMES] + [
         "outcome", "recovered", "t_recover_s", "terminal_alpha_err_deg", "terminal_beta_err_deg",

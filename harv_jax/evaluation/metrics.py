@@ -4,135 +4,35 @@ Everything takes a trajectory sampled every ``dt_s`` from the controller's engag
 x [T, 10] (the state at t_k = k dt_s, the last row is the final state) and the deflections
 delta [T-1, 3] or [T, 3] applied over each step. Angles rad, rates rad/s, h ft.
 
-Recovery criterion (``RecoveryCriterion``, the issue's): |e_alpha| < 2 deg, |e_beta| < 1 deg,
-|e_mu| < 2 deg (wrapped) and ||omega|| < 0.17 rad/s at every sample of the last ``hold_s`` = 10 s.
+Recovery criterion, envelope and outcome codes: ``harv_jax.task.criteria`` (|e_alpha| < 2 deg, |e_beta| <
+1 deg, |e_mu| < 2 deg (wrapped) and ||omega|| < 0.17 rad/s at every sample of the last ``hold_s`` = 10 s).
 """
 
 from __future__ import annotations
-
-import enum
 
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from harv_jax.aircraft.aero import wrap_angle_rad
 from harv_jax.aircraft.params import AircraftParams
-from harv_jax.units import RAD_PER_DEG
+from harv_jax.dynamics.state import gamma_rad, h_ft
+from harv_jax.task.criteria import (
+    Envelope,
+    Outcome,
+    RecoveryCriterion,
+    alpha_recovered_mask,
+    default_criterion,
+    default_envelope,
+    omega_norm_radps,
+    recovered_mask,
+    tracking_errors,
+    within_envelope,
+)
 
 #: Chatter band: deflection energy above this frequency, Hz.
 CHATTER_CUTOFF_HZ = 5.0
 #: A deflection within this distance of a position limit counts as saturated, rad.
 SATURATION_TOL_RAD = 1e-4
-
-
-class Outcome(enum.IntEnum):
-    """Outcome codes of one run, in priority order (highest first: NONFINITE)."""
-
-    RECOVERED = 0  # recovery criterion held over the final hold window (and nothing worse)
-    TIMEOUT = 1  # stayed in the envelope but did not meet the criterion by the end
-    DEPARTED = 2  # left the envelope (Envelope) at some time and did not recover
-    GROUND_HIT = 3  # altitude below Envelope.h_min_ft at some time
-    NONFINITE = 4  # the simulation produced a non-finite state
-
-
-OUTCOME_NAMES: tuple[str, ...] = tuple(o.name for o in Outcome)
-
-
-@struct.dataclass
-class RecoveryCriterion:
-    """Tolerances of the recovery criterion (traced; rad, rad/s, s)."""
-
-    alpha_tol_rad: jnp.ndarray
-    beta_tol_rad: jnp.ndarray
-    mu_tol_rad: jnp.ndarray
-    omega_tol_radps: jnp.ndarray
-    hold_s: jnp.ndarray
-
-
-def default_criterion() -> RecoveryCriterion:
-    """The issue's criterion: 2 deg, 1 deg, 2 deg, 0.17 rad/s, held over the last 10 s."""
-    dt = jnp.result_type(float)
-    return RecoveryCriterion(
-        alpha_tol_rad=jnp.asarray(2.0 * RAD_PER_DEG, dt),
-        beta_tol_rad=jnp.asarray(1.0 * RAD_PER_DEG, dt),
-        mu_tol_rad=jnp.asarray(2.0 * RAD_PER_DEG, dt),
-        omega_tol_radps=jnp.asarray(0.17, dt),
-        hold_s=jnp.asarray(10.0, dt),
-    )
-
-
-@struct.dataclass
-class Envelope:
-    """Flight envelope (paper's observation ranges, ft/s, rad, rad/s) plus the ground, ft.
-
-    gamma, beta, mu ranges of the paper (+-100 deg, +-pi) cannot be left by construction and are
-    not checked.
-    """
-
-    v_min_fps: jnp.ndarray
-    v_max_fps: jnp.ndarray
-    alpha_min_rad: jnp.ndarray
-    alpha_max_rad: jnp.ndarray
-    rate_max_radps: jnp.ndarray
-    h_min_ft: jnp.ndarray
-
-
-def default_envelope() -> Envelope:
-    """Paper Table: V in [0, 2000] ft/s, alpha in [-0.244, 1.571] rad, |p|,|q|,|r| <= 10 pi; h >= 0."""
-    dt = jnp.result_type(float)
-    return Envelope(
-        v_min_fps=jnp.asarray(0.0, dt),
-        v_max_fps=jnp.asarray(2000.0, dt),
-        alpha_min_rad=jnp.asarray(-0.244, dt),
-        alpha_max_rad=jnp.asarray(1.571, dt),
-        rate_max_radps=jnp.asarray(10.0 * np.pi, dt),
-        h_min_ft=jnp.asarray(0.0, dt),
-    )
-
-
-def tracking_errors(x_wind: jnp.ndarray, reference_rad: jnp.ndarray) -> jnp.ndarray:
-    """[..., 3] errors [alpha - alpha_d, beta - beta_d, wrap(mu - mu_d)], rad (x [..., 10], ref [..., 3])."""
-    y = jnp.stack([x_wind[..., 1], x_wind[..., 2], x_wind[..., 6]], axis=-1)
-    e = y - jnp.broadcast_to(reference_rad, y.shape)
-    return jnp.concatenate([e[..., :2], wrap_angle_rad(e[..., 2:])], axis=-1)
-
-
-def omega_norm_radps(x_wind: jnp.ndarray) -> jnp.ndarray:
-    """||(p, q, r)||, rad/s, [...]."""
-    return jnp.linalg.norm(x_wind[..., 3:6], axis=-1)
-
-
-def recovered_mask(
-    x_wind: jnp.ndarray, reference_rad: jnp.ndarray, criterion: RecoveryCriterion
-) -> jnp.ndarray:
-    """Per-sample bool [...]: all four conditions of the recovery criterion hold."""
-    e = jnp.abs(tracking_errors(x_wind, reference_rad))
-    return (
-        (e[..., 0] < criterion.alpha_tol_rad)
-        & (e[..., 1] < criterion.beta_tol_rad)
-        & (e[..., 2] < criterion.mu_tol_rad)
-        & (omega_norm_radps(x_wind) < criterion.omega_tol_radps)
-    )
-
-
-def alpha_recovered_mask(
-    x_wind: jnp.ndarray, reference_rad: jnp.ndarray, criterion: RecoveryCriterion
-) -> jnp.ndarray:
-    """Per-sample bool [...]: |e_alpha| < tol and ||omega|| < tol (the issue's recovery-time condition)."""
-    e = jnp.abs(tracking_errors(x_wind, reference_rad))
-    return (e[..., 0] < criterion.alpha_tol_rad) & (omega_norm_radps(x_wind) < criterion.omega_tol_radps)
-
-
-def within_envelope(x_wind: jnp.ndarray, envelope: Envelope) -> jnp.ndarray:
-    """Per-sample bool [...]: V, alpha and body rates inside the envelope (altitude not included)."""
-    return (
-        (x_wind[..., 0] >= envelope.v_min_fps)
-        & (x_wind[..., 0] <= envelope.v_max_fps)
-        & (x_wind[..., 1] >= envelope.alpha_min_rad)
-        & (x_wind[..., 1] <= envelope.alpha_max_rad)
-        & jnp.all(jnp.abs(x_wind[..., 3:6]) <= envelope.rate_max_radps, axis=-1)
-    )
 
 
 def settle_time_s(ok: jnp.ndarray, dt_s: float | jnp.ndarray) -> jnp.ndarray:
@@ -283,7 +183,7 @@ def compute_metrics(
     overshoot = jnp.maximum(0.0, jnp.max(-e0_sign * e, axis=0))
     inside = within_envelope(x_wind, envelope)
     left = ~jnp.all(inside)
-    ground = jnp.any(x_wind[:, 9] < envelope.h_min_ft)
+    ground = jnp.any(h_ft(x_wind) < envelope.h_floor_ft)
     nonfinite = jnp.asarray(nonfinite) | ~jnp.all(jnp.isfinite(x_wind)) | ~jnp.all(jnp.isfinite(delta_rad))
     outcome = jnp.where(
         nonfinite,
@@ -303,7 +203,7 @@ def compute_metrics(
         t_recover_s=jnp.where(recovered, settle_time_s(ok, dt_s), jnp.nan),
         t_recover_alpha_s=settle_time_s(alpha_recovered_mask(x_wind, reference_rad, criterion), dt_s),
         overshoot_rad=overshoot,
-        altitude_loss_ft=x_wind[0, 9] - jnp.min(x_wind[:, 9]),
+        altitude_loss_ft=h_ft(x_wind[0]) - jnp.min(h_ft(x_wind)),
         control_tv_rad=total_variation_rad(delta_rad),
         chatter_index_rad2=chatter_index_rad2(delta_rad, dt_s),
         sat_position_fraction=pos_sat,
@@ -315,5 +215,5 @@ def compute_metrics(
         max_abs_error_hold_rad=jnp.max(abs_e_hold, axis=0),
         max_omega_hold_radps=jnp.max(omega_hold),
         final_error_rad=e[-1],
-        max_abs_gamma_rad=jnp.max(jnp.abs(x_wind[:, 7])),
+        max_abs_gamma_rad=jnp.max(jnp.abs(gamma_rad(x_wind))),
     )

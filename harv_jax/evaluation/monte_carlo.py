@@ -20,10 +20,14 @@ from flax import struct
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from harv_jax.aircraft.params import AircraftParams
+from harv_jax.aircraft.randomize import default_aircraft_randomization, sample_aircraft
 from harv_jax.control.base import Controller
+from harv_jax.dynamics.state import TRACKED_INDEX, WIND_INDEX
 from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.metrics import RunMetrics, tracking_errors
-from harv_jax.scenarios import sample_table_states
+from harv_jax.evaluation.metrics import RunMetrics
+from harv_jax.task.criteria import tracking_errors
+from harv_jax.task.scenarios import sample_table_states
+from harv_jax.task.spec import DT_S, H0_FT
 
 #: State components the paper's Monte Carlo samples (the others start at 0 / h0).
 MC_SAMPLED_STATES = ("V", "alpha", "beta", "p", "q", "r")
@@ -34,6 +38,8 @@ PER_CHANNEL_INFO = (
 )  # fmt: skip
 CHANNELS = ("alpha", "beta", "mu")
 TERMINAL_WINDOW_S = 1.0
+#: mu and gamma in the wind state (not sampled by default).
+_MU_GAMMA = slice(WIND_INDEX["mu"], WIND_INDEX["gamma"] + 1)
 
 
 class MCInputs(struct.PyTreeNode):
@@ -56,7 +62,7 @@ def sample_mc_inputs(
     nominal: AircraftParams,
     randomize: bool = False,
     sample_all_states: bool = False,
-    h0_ft: float = 25000.0,
+    h0_ft: float = H0_FT,
 ) -> MCInputs:
     """Sample initial states (paper's reset bounds) and aircraft for ``n_runs`` runs.
 
@@ -64,8 +70,8 @@ def sample_mc_inputs(
         key: PRNG key (split into aircraft, initial-state and controller keys).
         n_runs: number of runs.
         nominal: nominal aircraft.
-        randomize: draw mass, inertia and aero-table multipliers per run (the environment's domain
-            randomization ranges; gusts, sensor noise and delay are not applied in the Monte Carlo).
+        randomize: draw mass, inertia and aero-table multipliers per run (``aircraft.randomize`` at its
+            default ranges, the env's; gusts, sensor noise and delay are not applied in the Monte Carlo).
         sample_all_states: also sample mu and gamma (default: as the paper, only V, alpha, beta,
             p, q, r are sampled; mu = gamma = 0).
         h0_ft: initial altitude, ft.
@@ -73,16 +79,10 @@ def sample_mc_inputs(
     key_aircraft, key_init, key_ctrl = jax.random.split(key, 3)
     x0 = sample_table_states(key_init, n_runs, h0_ft=h0_ft)
     if not sample_all_states:
-        x0 = x0.at[:, 6:8].set(0.0)
+        x0 = x0.at[:, _MU_GAMMA].set(0.0)
     if randomize:
-        from harv_jax.env.config import default_randomization_params
-        from harv_jax.env.randomize import sample_episode
-
-        rand = default_randomization_params(enabled=True)
-        episodes = jax.vmap(lambda k: sample_episode(k, nominal, rand, 0))(
-            jax.random.split(key_aircraft, n_runs)
-        )
-        params = episodes.aircraft
+        rand = default_aircraft_randomization(enabled=True)
+        params = jax.vmap(lambda k: sample_aircraft(k, nominal, rand))(jax.random.split(key_aircraft, n_runs))
     else:
         params = jax.tree.map(lambda a: jnp.broadcast_to(a, (n_runs,) + jnp.shape(a)), nominal)
     return MCInputs(x0_wind=x0, params=params, keys=jax.random.split(key_ctrl, n_runs))
@@ -119,7 +119,7 @@ def _one_run(
     m, x_all = score(res, reference_rad, params, dt_s)
     n_term = max(1, int(round(TERMINAL_WINDOW_S / dt_s)))
     term = jnp.mean(tracking_errors(x_all[-n_term:], reference_rad), axis=0)
-    hist = x_all[:-1:record_every][:, jnp.array([1, 2, 6])]
+    hist = x_all[:-1:record_every][:, jnp.array(TRACKED_INDEX)]
     info_means = {
         k: jnp.mean(v.astype(x_all.dtype), axis=0)
         for k, v in res.traj.info.items()
@@ -154,7 +154,7 @@ def run_mc(
     inputs: MCInputs,
     reference_rad: jnp.ndarray,
     n_steps: int,
-    dt_s: float = 0.01,
+    dt_s: float = DT_S,
     record_every: int = 10,
     chunk_size: int = 250,
 ) -> tuple[MCRunOutput, dict[str, float]]:

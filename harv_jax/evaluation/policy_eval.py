@@ -2,10 +2,11 @@
 
 The batch (common random numbers: drawn once from a fixed key, the same for every seed and period) holds
 ``n_upset`` states from the paper's reset bounds sampled as ``harv-jax mc`` does (mu = gamma = 0, alpha_d
-= 0.349 rad) and ``n_spin`` developed spins: the scenario's 30 s spin of the nominal aircraft first, then
-entries of a spin bank drawn with another key than any training bank. Each run starts at its deflections
-and flies ``duration_s`` (default 60 s, as ``harv-jax mc``) RL-only with the deterministic policy, and is
-scored by ``compute_metrics`` (recovered = the criterion held over the last 10 s; recovery time).
+= ``task.spec.ALPHA_TARGET_RAD``) and ``n_spin`` developed spins: the scenario's 30 s spin of the nominal
+aircraft first, then entries of a spin bank drawn with another key than any training bank. Each run
+starts at its deflections and flies ``duration_s`` (default 60 s, as ``harv-jax mc``) RL-only with the
+deterministic policy, and is scored by ``compute_metrics`` (recovered = the criterion held over the last
+10 s; recovery time).
 
 ``make_policy_eval(networks, batch, ...)`` returns ``evaluate(params, normalizer)`` for one seed; vmap it
 over a leading seed axis (:func:`make_seed_eval` does, and jits).
@@ -21,10 +22,11 @@ import numpy as np
 from flax import struct
 
 from harv_jax.aircraft.params import AircraftParams
+from harv_jax.aircraft.randomize import default_aircraft_randomization
 from harv_jax.control.rl import make_rl_controller
 from harv_jax.evaluation.closed_loop import closed_loop, score
 from harv_jax.evaluation.monte_carlo import sample_mc_inputs
-from harv_jax.scenarios import DEFAULT_ALPHA_TARGET_RAD
+from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 #: Key offsets of the evaluation batch (far from the training seeds and from the Monte Carlo's seed 0).
 EVAL_KEY_SEED = 2_000_001
@@ -51,8 +53,7 @@ def make_eval_batch(
     n_upset: int, n_spin: int, nominal: AircraftParams, randomize: bool = False, seed: int = EVAL_KEY_SEED
 ) -> EvalBatch:
     """The fixed evaluation batch (see the module docstring)."""
-    from harv_jax.env.config import default_randomization_params
-    from harv_jax.spin_bank import make_spin_bank, nominal_spin
+    from harv_jax.task.spin_bank import make_spin_bank, nominal_spin
 
     k_mc, k_bank = jax.random.split(jax.random.key(seed))
     mc = sample_mc_inputs(k_mc, n_upset, nominal, randomize=randomize) if n_upset else None
@@ -67,7 +68,7 @@ def make_eval_batch(
         ds.append(d_nom[None])
         ps.append(jax.tree.map(lambda a: jnp.asarray(a)[None], nominal))
         if n_spin > 1:
-            bank = make_spin_bank(k_bank, n_spin - 1, nominal, default_randomization_params(randomize))
+            bank = make_spin_bank(k_bank, n_spin - 1, nominal, default_aircraft_randomization(randomize))
             xs.append(bank.x_wind)
             ds.append(bank.delta_rad)
             ps.append(jax.tree.map(lambda a: jnp.broadcast_to(a, (n_spin - 1,) + jnp.shape(a)), nominal))
@@ -86,8 +87,8 @@ def make_policy_eval(
     act_fn: Callable[[object, object, jax.Array], jax.Array],
     batch: EvalBatch,
     duration_s: float = 60.0,
-    dt_s: float = 0.01,
-    alpha_d_rad: float = DEFAULT_ALPHA_TARGET_RAD,
+    dt_s: float = DT_S,
+    alpha_d_rad: float = ALPHA_TARGET_RAD,
 ) -> Callable[[object, object], dict[str, jax.Array]]:
     """``evaluate(params, normalizer) -> {"recovered": [N] bool, "t_recover_s": [N], "tv_rad": [N]}``.
 

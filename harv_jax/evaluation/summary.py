@@ -19,8 +19,9 @@ from typing import Any
 
 import numpy as np
 
-from harv_jax.evaluation.metrics import OUTCOME_NAMES, RunMetrics
+from harv_jax.evaluation.metrics import RunMetrics
 from harv_jax.evaluation.monte_carlo import MCRunOutput, gate_summary
+from harv_jax.task.criteria import OUTCOME_NAMES
 
 #: Key of the fraction of runs recovered, in every summary.
 RECOVERY_RATE = "recovery_rate"

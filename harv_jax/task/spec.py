@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import math
 
+from harv_jax.units import RAD_PER_DEG
+
 #: Control and integration step, s (paper: 0.01 s, 100 Hz).
 DT_S = 0.01
 #: Initial (true) altitude, ft. The paper starts its altitude record at 0 ft only to show the loss of
@@ -45,3 +47,12 @@ ALPHA_TARGET_RAD = 0.349
 #: Sideslip and bank targets, rad (paper: 0).
 BETA_TARGET_RAD = 0.0
 MU_TARGET_RAD = 0.0
+
+#: Recovery criterion (issue's; the Monte Carlo and the reward's ``recovered_tol``): |e_alpha| < 2 deg,
+#: |e_beta| < 1 deg, |e_mu| < 2 deg (wrapped), ||omega|| < 0.17 rad/s (the reward's blend threshold,
+#: paper Sec. IV-A), held over the last 10 s of a run.
+RECOVERY_ALPHA_TOL_RAD = 2.0 * RAD_PER_DEG
+RECOVERY_BETA_TOL_RAD = 1.0 * RAD_PER_DEG
+RECOVERY_MU_TOL_RAD = 2.0 * RAD_PER_DEG
+RECOVERY_OMEGA_TOL_RADPS = 0.17
+RECOVERY_HOLD_S = 10.0

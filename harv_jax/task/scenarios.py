@@ -1,8 +1,9 @@
 """Initial conditions: the paper's reset bounds (random upsets) and the developed-spin scenario.
 
-Reset bounds: paper Table "Bounds for random initialization of state" (MODEL.md "Envelope and reset
-bounds"); chi = 0 and h = ``DEFAULT_H0_FT`` (the paper starts its altitude record at 0 ft; here h is
-the true altitude and plots show h - h0).
+Reset bounds: ``task.spec.RESET_BOUNDS`` (paper Table "Bounds for random initialization of state",
+MODEL.md "Envelope and reset bounds"), here also as arrays (``RESET_LOW``/``RESET_HIGH``) and a traced
+pytree (``ResetBounds``); chi = 0 and h = ``task.spec.H0_FT`` (the paper starts its altitude record at
+0 ft; here h is the true altitude and plots show h - h0).
 
 Spin scenario (paper Sec. VI): the aircraft is held in a developed spin with pro-spin controls for
 the first 30 s, then the controller takes over. Entry found by a grid search over entry states and
@@ -21,35 +22,28 @@ import numpy as np
 from flax import struct
 
 from harv_jax.aircraft.params import AircraftParams
-from harv_jax.dynamics.actuators import actuator_step
-from harv_jax.dynamics.integrate import DEFAULT_DT_S, rk4_body_step
-from harv_jax.dynamics.state import WIND_STATE_NAMES, BodyState, from_wind, to_wind
+from harv_jax.dynamics.plant import plant_step
+from harv_jax.dynamics.state import (
+    WIND_STATE_NAMES,
+    BodyState,
+    alpha_rad,
+    from_wind,
+    gamma_rad,
+    h_ft,
+    to_wind,
+    yaw_rate_radps,
+)
+from harv_jax.task.spec import ALPHA_TARGET_BOUNDS_RAD, DT_S, H0_FT, RESET_BOUNDS, RESET_STATE_NAMES
 from harv_jax.units import RAD_PER_DEG
 
-#: Default initial altitude, ft.
-DEFAULT_H0_FT = 25_000.0
-#: Sampled components of the wind state, in ``WIND_STATE_NAMES`` order (chi and h are fixed).
-RESET_STATE_NAMES: tuple[str, ...] = ("V", "alpha", "beta", "p", "q", "r", "mu", "gamma")
-#: Paper Table reset bounds (ft/s, rad, rad/s), keyed by state name.
-RESET_BOUNDS: dict[str, tuple[float, float]] = {
-    "V": (100.0, 1500.0),
-    "alpha": (-0.175, 1.047),
-    "beta": (-0.262, 0.262),
-    "p": (-2.094, 2.094),
-    "q": (-1.047, 1.047),
-    "r": (-0.524, 0.524),
-    "mu": (-3.142, 3.142),
-    "gamma": (-1.047, 1.047),
-}
-#: Paper Table bounds of the target angle of attack alpha_d, rad (beta_d = mu_d = 0).
-ALPHA_TARGET_BOUNDS_RAD: tuple[float, float] = (-0.085, 0.68)
-#: The target of the paper's Monte Carlo and spin studies, rad (20 deg).
-DEFAULT_ALPHA_TARGET_RAD = 0.349
+#: Paper reset bounds as arrays [8] over ``RESET_STATE_NAMES`` (ft/s, rad, rad/s).
+RESET_LOW = np.array([RESET_BOUNDS[n][0] for n in RESET_STATE_NAMES])
+RESET_HIGH = np.array([RESET_BOUNDS[n][1] for n in RESET_STATE_NAMES])
 
 #: Spin entry state (wind axes, ft/s, rad, rad/s, ft) -- see the module docstring.
 SPIN_ENTRY: dict[str, float] = {
     "V": 300.0, "alpha": 0.9, "beta": 0.0, "p": -0.5, "q": 0.0, "r": -0.5,
-    "mu": 0.0, "gamma": 0.0, "chi": 0.0, "h": DEFAULT_H0_FT,
+    "mu": 0.0, "gamma": 0.0, "chi": 0.0, "h": H0_FT,
 }  # fmt: skip
 #: Pro-spin controls [de, da, dr], rad: full aft stick, full positive aileron and rudder (left spin).
 SPIN_CONTROLS_RAD: tuple[float, float, float] = (-0.436, 0.436, 0.524)
@@ -71,16 +65,14 @@ class ResetBounds:
 
 def reset_bounds(dtype=None) -> ResetBounds:
     """The paper's reset bounds as a pytree."""
-    lo = np.array([RESET_BOUNDS[n][0] for n in RESET_STATE_NAMES])
-    hi = np.array([RESET_BOUNDS[n][1] for n in RESET_STATE_NAMES])
-    return ResetBounds(low=jnp.asarray(lo, dtype=dtype), high=jnp.asarray(hi, dtype=dtype))
+    return ResetBounds(low=jnp.asarray(RESET_LOW, dtype=dtype), high=jnp.asarray(RESET_HIGH, dtype=dtype))
 
 
 def sample_table_states(
     key: jax.Array,
     n: int,
     bounds: ResetBounds | None = None,
-    h0_ft: float | jnp.ndarray = DEFAULT_H0_FT,
+    h0_ft: float | jnp.ndarray = H0_FT,
     chi_rad: float | jnp.ndarray = 0.0,
 ) -> jnp.ndarray:
     """Initial wind states drawn uniformly from the reset bounds.
@@ -110,7 +102,7 @@ def sample_alpha_targets(key: jax.Array, n: int) -> jnp.ndarray:
     return jax.random.uniform(key, (n,), minval=lo, maxval=hi)
 
 
-def spin_entry_state(h0_ft: float = DEFAULT_H0_FT, dtype=None) -> jnp.ndarray:
+def spin_entry_state(h0_ft: float = H0_FT, dtype=None) -> jnp.ndarray:
     """Wind state [10] of the spin entry (``SPIN_ENTRY``) at altitude ``h0_ft``."""
     vals = {**SPIN_ENTRY, "h": h0_ft}
     return jnp.asarray([vals[n] for n in WIND_STATE_NAMES], dtype=dtype)
@@ -126,7 +118,7 @@ def open_loop(
     x0: BodyState | jnp.ndarray,
     cmd_rad: jnp.ndarray,
     n_steps: int,
-    dt_s: float = DEFAULT_DT_S,
+    dt_s: float = DT_S,
     delta0_rad: jnp.ndarray | None = None,
 ) -> tuple[jnp.ndarray, jnp.ndarray, BodyState, jnp.ndarray]:
     """Open-loop flight with a fixed command through the actuator model (rate limits apply).
@@ -149,10 +141,8 @@ def open_loop(
     cmd = jnp.asarray(cmd_rad, dtype)
 
     def step(carry, _):
-        state, delta = carry
-        delta = actuator_step(delta, cmd, params, dt_s)
-        state = rk4_body_step(state, delta, params, dt_s)
-        return (state, delta), (to_wind(state), delta)
+        state, delta, x = plant_step(*carry, cmd, params, dt_s)
+        return (state, delta), (x, delta)
 
     (state, delta), (xs, deltas) = jax.lax.scan(step, (body0, delta0), None, length=n_steps)
     return jnp.concatenate([to_wind(body0)[None], xs], axis=0), deltas, state, delta
@@ -161,8 +151,8 @@ def open_loop(
 def open_loop_spin(
     params: AircraftParams,
     spin_s: float = SPIN_DURATION_S,
-    dt_s: float = DEFAULT_DT_S,
-    h0_ft: float = DEFAULT_H0_FT,
+    dt_s: float = DT_S,
+    h0_ft: float = H0_FT,
 ) -> tuple[jnp.ndarray, jnp.ndarray, BodyState, jnp.ndarray]:
     """The spin phase: from ``spin_entry_state`` with the pro-spin command for ``spin_s`` seconds.
 
@@ -177,8 +167,8 @@ def open_loop_spin(
 def developed_spin_state(
     params: AircraftParams,
     spin_s: float = SPIN_DURATION_S,
-    dt_s: float = DEFAULT_DT_S,
-    h0_ft: float = DEFAULT_H0_FT,
+    dt_s: float = DT_S,
+    h0_ft: float = H0_FT,
 ) -> tuple[BodyState, jnp.ndarray]:
     """State and deflections after ``spin_s`` s of the open-loop spin (e.g. for spin resets).
 
@@ -200,16 +190,16 @@ class SpinCheck(struct.PyTreeNode):
     spinning: jnp.ndarray
 
 
-def spin_check(x_wind: jnp.ndarray, dt_s: float = DEFAULT_DT_S, window_s: float = SPIN_WINDOW_S) -> SpinCheck:
+def spin_check(x_wind: jnp.ndarray, dt_s: float = DT_S, window_s: float = SPIN_WINDOW_S) -> SpinCheck:
     """Is ``x_wind`` [T, 10] a developed spin? alpha > 40 deg and |r| > 0.5 rad/s over the whole last
     ``window_s`` (static) with the same sign of r, and altitude lost over the run."""
     n_win = int(round(window_s / dt_s))
     w = x_wind[-n_win:]
-    r = w[:, 5]
-    min_alpha = jnp.min(w[:, 1])
+    r = yaw_rate_radps(w)
+    min_alpha = jnp.min(alpha_rad(w))
     min_abs_r = jnp.min(jnp.abs(r))
     same_sign = jnp.all(jnp.sign(r) == jnp.sign(r[0]))
-    alt_loss = x_wind[0, 9] - x_wind[-1, 9]
+    alt_loss = h_ft(x_wind[0]) - h_ft(x_wind[-1])
     spinning = (
         (min_alpha > SPIN_MIN_ALPHA_RAD) & (min_abs_r > SPIN_MIN_YAW_RATE_RADPS) & same_sign & (alt_loss > 0)
     )
@@ -218,6 +208,6 @@ def spin_check(x_wind: jnp.ndarray, dt_s: float = DEFAULT_DT_S, window_s: float 
         min_abs_yaw_rate_radps=min_abs_r,
         mean_yaw_rate_radps=jnp.mean(r),
         altitude_loss_ft=alt_loss,
-        mean_gamma_rad=jnp.mean(w[:, 7]),
+        mean_gamma_rad=jnp.mean(gamma_rad(w)),
         spinning=spinning,
     )

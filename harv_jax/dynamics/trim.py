@@ -9,6 +9,7 @@ import jax.numpy as jnp
 
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.dynamics.eom import derivatives
+from harv_jax.dynamics.state import WIND_INDEX
 
 NEWTON_ITERS = 30
 
@@ -34,7 +35,7 @@ def _residual(z: jnp.ndarray, vt_fps, h_ft, params: AircraftParams) -> jnp.ndarr
     u = jnp.stack([de, 0.0 * de, 0.0 * de])
     xd = derivatives(x, u, params.replace(throttle=throttle))
     # V_dot in ft/s^2, alpha_dot (= -gamma_dot at level flight) in rad/s, q_dot in rad/s^2
-    return jnp.stack([xd[0], xd[1], xd[4]])
+    return jnp.stack([xd[WIND_INDEX[n]] for n in ("V", "alpha", "q")])
 
 
 @jax.jit
