@@ -10,6 +10,7 @@ import json
 import math
 import shlex
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import typer
@@ -161,3 +162,12 @@ def load_state_file(path: Path) -> dict[str, float]:
     if state["h"] <= 0:
         raise UsageError(f"state file {str(path)!r}: h={state['h']} ft must be > 0")
     return state
+
+
+def warn_loop_mismatch(names: Sequence[str], policy: str | None, zeta: str) -> None:
+    """Print one warning line to stderr per controller that flies the policy in another loop than it was
+    trained in (``harv_jax.control.registry.loop_mismatches``)."""
+    from harv_jax.control.registry import ControllerOptions, loop_mismatches
+
+    for line in loop_mismatches(names, ControllerOptions(policy=policy, zeta=zeta)):
+        typer.echo(f"harv-jax: warning: {line}", err=True)

@@ -113,7 +113,9 @@ def test_module_size(path: Path) -> None:
     assert n <= MAX_MODULE_LINES, f"{path.relative_to(PKG)} has {n} lines (max {MAX_MODULE_LINES})"
 
 
-@pytest.mark.parametrize("init", sorted(PKG.rglob("__init__.py")), ids=lambda p: str(p.parent.relative_to(PKG)))
+@pytest.mark.parametrize(
+    "init", sorted(PKG.rglob("__init__.py")), ids=lambda p: str(p.parent.relative_to(PKG))
+)
 def test_package_docstring(init: Path) -> None:
     doc = ast.get_docstring(ast.parse(init.read_text()))
     assert doc and len(doc) > 40, f"{init.relative_to(PKG)} needs a docstring saying what the package owns"

@@ -33,7 +33,7 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
     ) -> None:
         """RL vs SMC vs hybrid on the spin and a fixed state: overlaid histories, metrics table (md, csv)."""
-        from harv_jax.cli_options import check_fly_options, command_line, load_state_file
+        from harv_jax.cli_options import check_fly_options, command_line, load_state_file, warn_loop_mismatch
         from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
         from harv_jax.evaluation.comparison import FIXED_STATE, compare, write_comparison
         from harv_jax.guards import check_seed
@@ -44,6 +44,7 @@ def register(app: typer.Typer) -> None:
         for name in names:
             check_fly_options(name, "sat", target_alpha, duration, spin_s)
             build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
+        warn_loop_mismatch(names, policy, zeta)
         fixed_state = FIXED_STATE
         if state is not None:
             if not state.is_file():

@@ -130,7 +130,7 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
     ) -> None:
         """Recovery envelope map: outcome and recovery time over an initial-state grid, per controller."""
-        from harv_jax.cli_options import check_mc_options, command_line
+        from harv_jax.cli_options import check_mc_options, command_line, warn_loop_mismatch
         from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
         from harv_jax.evaluation.envelope_study import envelope_study, write_envelope
         from harv_jax.guards import check_closed_loop_batch, check_seed
@@ -144,6 +144,7 @@ def register(app: typer.Typer) -> None:
         check_closed_loop_batch(g.n_runs, n_steps, n_steps, chunk, len(names), runs_flag="--n x --n =")
         for name in names:  # fail fast, before creating the output directory
             build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
+        warn_loop_mismatch(names, policy, zeta)
         out_dir = prepare_out_dir(out, force)
         study = envelope_study(
             names, policy, g, target_alpha, duration, seed, chunk, zeta, command_line(), typer.echo

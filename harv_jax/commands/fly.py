@@ -36,7 +36,7 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Fly a controller closed loop: trajectory.csv, trajectory.png, sliding.png, metrics.json (and
         hybrid.png for the hybrid)."""
-        from harv_jax.cli_options import SCENARIOS, check_fly_options, load_state_file
+        from harv_jax.cli_options import SCENARIOS, check_fly_options, load_state_file, warn_loop_mismatch
         from harv_jax.control.registry import ControllerOptions, build_controller
         from harv_jax.evaluation.flight import fly as fly_scenario
         from harv_jax.evaluation.flight import write_flight
@@ -50,6 +50,7 @@ def register(app: typer.Typer) -> None:
         # validate the state file, the policy and zeta before creating the output directory
         state = scenario if scenario in SCENARIOS else load_state_file(Path(scenario))
         build_controller(controller, ControllerOptions(policy=policy, zeta=zeta, switching=switching))
+        warn_loop_mismatch([controller], policy, zeta)
         out_dir = prepare_out_dir(out, force)
         res = fly_scenario(state, target_alpha, duration, seed, switching, spin_s, controller, policy, zeta)
         settings = flight_settings(

@@ -29,7 +29,7 @@ def register(app: typer.Typer) -> None:
         ),
     ) -> None:
         """Monte Carlo: same sampled aircraft/initial states for every controller; summary + figures."""
-        from harv_jax.cli_options import check_mc_options, command_line
+        from harv_jax.cli_options import check_mc_options, command_line, warn_loop_mismatch
         from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
         from harv_jax.evaluation.mc_study import monte_carlo, write_monte_carlo
         from harv_jax.guards import check_closed_loop_batch, check_seed
@@ -41,6 +41,7 @@ def register(app: typer.Typer) -> None:
         check_closed_loop_batch(runs, round(duration / DT_S), 10, chunk, len(names))
         for name in names:  # fail fast, before creating the output directory
             build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
+        warn_loop_mismatch(names, policy, zeta)
         out_dir = prepare_out_dir(out, force)
         study = monte_carlo(
             names, policy, runs, target_alpha, duration, seed, randomize, chunk, zeta=zeta,

@@ -33,7 +33,7 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
     ) -> None:
         """Spin comparison and a Monte Carlo of SMC, RL and hybrid with the shipped policy, plus a report."""
-        from harv_jax.cli_options import check_mc_options, command_line
+        from harv_jax.cli_options import check_mc_options, command_line, warn_loop_mismatch
         from harv_jax.control.registry import ControllerOptions, build_controller
         from harv_jax.evaluation.comparison import FIXED_STATE, compare, write_comparison
         from harv_jax.evaluation.mc_study import monte_carlo, write_monte_carlo
@@ -49,6 +49,7 @@ def register(app: typer.Typer) -> None:
         check_closed_loop_batch(runs, round(DURATION_S / DT_S), 10, CHUNK, len(names))
         for name in names:
             build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
+        warn_loop_mismatch(names, policy, zeta)
         out_dir = prepare_out_dir(out, force)
         t0 = time.perf_counter()
         typer.echo("[quickstart] 1/3 spin comparison: 30 s developed spin, then RL, SMC and hybrid recover")

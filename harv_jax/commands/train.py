@@ -115,6 +115,7 @@ def run_train(
     init_policy: str | None = None,
     target_recovery: float | None = None,
     watchdog_s: float | None = None,
+    in_loop: str | None = None,
 ) -> dict[str, Any]:
     """Validate, build, train, write outputs; returns a summary dict. Raises UsageError on bad input.
 
@@ -124,11 +125,14 @@ def run_train(
     fraction is at least this (evaluation then runs every period unless ``[eval] every`` says otherwise).
     ``watchdog_s``: wall seconds without a finished period after which the run stops with exit code 3
     (None: automatic, see :mod:`harv_jax.ppo.watchdog`; 0: no watchdog).
+    ``in_loop``: ``hybrid[:schedule]`` trains with the hybrid law inside the env step
+    (:mod:`harv_jax.training.in_loop`); recorded in ``config.json`` and in the policy files.
     """
     if target_recovery is not None and not (math.isfinite(target_recovery) and 0 < target_recovery <= 1):
         raise UsageError(f"--target-recovery {target_recovery} must be in (0, 1]")
     from harv_jax.ppo import checkpoint
     from harv_jax.ppo import config as ppo_config
+    from harv_jax.training.in_loop import LOOP_KEY, parse_loop, split_loop
     from harv_jax.training.presets import DEFAULT_PRESET, build_config
     from harv_jax.training.resume import resume_plan
 
@@ -138,6 +142,7 @@ def run_train(
         given = ["--preset"] if preset is not None else []
         given += [ppo_config.flag_name(k) for k, v in sorted(overrides.items()) if v is not None]
         given += ["--init-policy"] if init_policy is not None else []
+        given += ["--in-loop"] if in_loop is not None else []
         if given:
             raise UsageError(f"--resume continues the stored configuration; drop {given[0]}")
         if out is not None and Path(out).resolve() != Path(resume).resolve():
@@ -153,6 +158,9 @@ def run_train(
             raise UsageError("--out DIR is required (or --resume DIR)")
         cfg, env_table = build_config(preset or DEFAULT_PRESET, overrides)
         check_periods(cfg, overrides.get("num_periods"))
+        if in_loop is not None:
+            env_table = {**env_table, LOOP_KEY: parse_loop(in_loop)}
+    loop = split_loop(env_table)[0]
 
     import jax
     from rich.console import Console
@@ -237,7 +245,7 @@ def run_train(
     if history:
         plot_training_curve(out_dir / "training_curve.png", history,
                             f"harv-jax train: {cfg.num_seeds} seed(s), {cfg.num_envs} envs")  # fmt: skip
-    best = outputs.export_policies(out_dir, result.state, result.trainer, cfg, history)
+    best = outputs.export_policies(out_dir, result.state, result.trainer, cfg, history, loop)
     summary = outputs.run_summary(out_dir, history, best, target_recovery)
     outputs.write_summary(out_dir / "summary.json", summary)
     return summary
@@ -298,7 +306,12 @@ def register(app: typer.Typer) -> None:
         ),
         target_recovery: float = typer.Option(
             None,
-            help="Stop once every seed's RL-only recovery fraction in the [eval] batch reaches this (0-1].",
+            help="Stop once every seed's recovery fraction in the [eval] batch reaches this (0-1].",
+        ),
+        in_loop: str = typer.Option(
+            None,
+            help="Train with a controller in the loop: hybrid[:SCHEDULE] (default schedule gated) applies "
+            "u = u_RL + zeta u_SMC inside the env step, the policy's action being u_RL. Default none.",
         ),
     ) -> None:
         """Train PPO policies (several seeds at once) on the spin/upset recovery env."""
@@ -314,6 +327,7 @@ def register(app: typer.Typer) -> None:
             init_policy,
             target_recovery=target_recovery,
             watchdog_s=watchdog_s,
+            in_loop=in_loop,
         )
         ret = summary.get("episode_return", {})
         rec = summary.get("episode/recovered", {})

@@ -46,11 +46,15 @@ class ControllerEntry:
         build: ControllerOptions -> Controller; raises UsageError for a bad option value.
         options: the ControllerOptions fields ``build`` reads (subset of OPTION_NAMES).
         help: one line for the command-line help.
+        loop: for a controller that flies a policy, the loop it flies it in (``none``: alone,
+            ``hybrid:<schedule>``), compared with the loop the policy was trained in
+            (``harv_jax.training.in_loop``); None: no policy.
     """
 
     build: Callable[[ControllerOptions], Controller]
     options: tuple[str, ...] = ()
     help: str = ""
+    loop: Callable[[ControllerOptions], str] | None = None
 
 
 def _build_smc(opts: ControllerOptions) -> Controller:
@@ -92,11 +96,14 @@ def _build_hybrid(opts: ControllerOptions) -> Controller:
 #: The controllers, in help order.
 CONTROLLERS: dict[str, ControllerEntry] = {
     "smc": ControllerEntry(_build_smc, ("switching",), "sliding-mode control (harv_jax.control.smc)"),
-    "rl": ControllerEntry(_build_rl, ("policy",), "the learned policy alone (harv_jax.control.rl)"),
+    "rl": ControllerEntry(
+        _build_rl, ("policy",), "the learned policy alone (harv_jax.control.rl)", lambda opts: "none"
+    ),
     "hybrid": ControllerEntry(
         _build_hybrid,
         ("policy", "zeta"),
         "policy + SMC feedback, scheduled by zeta (harv_jax.control.hybrid)",
+        lambda opts: f"hybrid:{opts.zeta}",
     ),
 }
 
@@ -151,3 +158,28 @@ def parse_controllers(text: str) -> list[str]:
     if len(set(names)) != len(names):
         raise UsageError(f"--controller {text!r} names a controller twice")
     return names
+
+
+def loop_mismatches(names: Iterable[str], options: ControllerOptions) -> list[str]:
+    """One line per controller in ``names`` that flies the policy in another loop than it was trained in.
+
+    The policy file's ``meta["loop"]`` (absent: ``none``, trained alone) is compared with the entry's
+    ``loop``; e.g. a policy trained with ``train --in-loop hybrid:gated`` flown as ``rl``.
+    """
+    lines = []
+    for name in names:
+        entry = CONTROLLERS.get(name)
+        if entry is None or entry.loop is None:
+            continue
+        from harv_jax.policies import DEFAULT_POLICY_SPEC
+        from harv_jax.policy import resolve_policy
+
+        trained = str(resolve_policy(options.policy).meta.get("loop", "none"))
+        flown = entry.loop(options)
+        if trained != flown:
+            spec = options.policy or DEFAULT_POLICY_SPEC
+            lines.append(
+                f"the policy {spec!r} was trained in the loop {trained!r} and flies here as {name!r} "
+                f"(loop {flown!r})"
+            )
+    return lines

@@ -23,6 +23,7 @@ from flax import struct
 
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.aircraft.randomize import default_aircraft_randomization
+from harv_jax.control.base import Controller
 from harv_jax.control.rl import make_rl_controller
 from harv_jax.evaluation.closed_loop import closed_loop, score
 from harv_jax.evaluation.monte_carlo import sample_mc_inputs
@@ -89,6 +90,7 @@ def make_policy_eval(
     duration_s: float = 60.0,
     dt_s: float = DT_S,
     alpha_d_rad: float = ALPHA_TARGET_RAD,
+    make_controller: Callable[[Callable[[jax.Array], jax.Array]], Controller] = make_rl_controller,
 ) -> Callable[[object, object], dict[str, jax.Array]]:
     """``evaluate(params, normalizer) -> {"recovered": [N] bool, "t_recover_s": [N], "tv_rad": [N]}``.
 
@@ -98,12 +100,14 @@ def make_policy_eval(
         duration_s: length of each run, s (static).
         dt_s: step, s.
         alpha_d_rad: target alpha, rad (beta_d = mu_d = 0).
+        make_controller: the controller the policy flies in, from its ``obs -> action`` function (default
+            RL-only; e.g. ``lambda act: make_hybrid(act, cfg)`` for a policy trained in the hybrid's loop).
     """
     n_steps = int(round(duration_s / dt_s))
     reference = jnp.asarray([alpha_d_rad, 0.0, 0.0], batch.x0_wind.dtype)
 
     def evaluate(params, normalizer) -> dict[str, jax.Array]:
-        controller = make_rl_controller(lambda obs: act_fn(params, normalizer, obs))
+        controller = make_controller(lambda obs: act_fn(params, normalizer, obs))
 
         def one(p, x0, d0):
             res = closed_loop(controller, p, x0, reference, jax.random.key(0), n_steps, dt_s, d0)

@@ -10,6 +10,8 @@ from typing import Any
 import jax
 import numpy as np
 
+from harv_jax.control.hybrid import HybridConfig, make_hybrid
+from harv_jax.control.rl import make_rl_controller
 from harv_jax.env import EnvParams, settings
 from harv_jax.evaluation.policy_eval import make_eval_batch, make_policy_eval, summarize_eval
 from harv_jax.ppo import config as ppo_config
@@ -18,6 +20,7 @@ from harv_jax.ppo.config import PPOConfig
 from harv_jax.ppo.networks import postprocess
 from harv_jax.ppo.train import Trainer, TrainingState
 from harv_jax.training import outputs
+from harv_jax.training.in_loop import split_loop
 
 #: ``period_hook`` of :func:`harv_jax.ppo.runner.run_training`: (period index, state) -> (row entries, stop).
 PeriodHook = Callable[[int, TrainingState], tuple[dict[str, Any], bool]]
@@ -34,11 +37,13 @@ def make_eval_hook(
     """The period hook of evaluation during training (``[eval]`` table), or (None, "") when it is off.
 
     Every ``eval.every`` periods (and at the last) every seed's deterministic policy flies the fixed batch of
-    ``harv_jax.evaluation.policy_eval`` RL-only; its recovery fractions and median recovery time go into the
-    period's row. With ``target_recovery`` training stops at the first evaluation where every seed recovers
-    at least that fraction (that period's checkpoint is written). With ``out_dir`` every evaluated period's
+    ``harv_jax.evaluation.policy_eval`` RL-only (a run trained in the hybrid's loop: in that loop); its
+    recovery fractions and median recovery time go into the period's row. With ``target_recovery`` training
+    stops at the first evaluation where every seed recovers at least that fraction (that period's checkpoint
+    is written). With ``out_dir`` every evaluated period's
     policies are kept as ``policy/period_<N>/policy_seed<s>.npz`` (a few kB each).
     """
+    loop, env_table = split_loop(env_table)
     ev = settings.eval_settings(settings.split_tables(env_table)[1]["eval"])
     if target_recovery is not None and not ev.every:
         ev = dataclasses.replace(ev, every=1)
@@ -51,7 +56,14 @@ def make_eval_hook(
         mean, _ = trainer.networks.policy(params, obs_in)
         return postprocess(mean)
 
-    evaluate = jax.jit(jax.vmap(make_policy_eval(act, batch, ev.duration_s)))
+    make_controller = make_rl_controller
+    if loop != "none":  # the policy flies in the loop it trains in
+        hybrid_cfg = HybridConfig(schedule=loop.removeprefix("hybrid:"))
+
+        def make_controller(act_obs):
+            return make_hybrid(act_obs, hybrid_cfg)
+
+    evaluate = jax.jit(jax.vmap(make_policy_eval(act, batch, ev.duration_s, make_controller=make_controller)))
     n_periods = ppo_config.num_periods(cfg)
     is_spin = jax.device_get(batch.is_spin)
 
@@ -63,9 +75,10 @@ def make_eval_hook(
         if out_dir is not None:
             steps = (p + 1) * ppo_config.steps_per_period(cfg)
             outputs.export_seed_policies(
-                out_dir / "policy" / f"period_{p + 1:04d}", state, trainer, cfg, steps
+                out_dir / "policy" / f"period_{p + 1:04d}", state, trainer, cfg, steps, loop
             )
         return out, stop
 
-    desc = f"evaluation every {ev.every} period(s): {ev.upset_runs} upsets + {ev.spin_runs} spins, RL-only"
+    flown = "RL-only" if loop == "none" else f"in the loop {loop}"
+    desc = f"evaluation every {ev.every} period(s): {ev.upset_runs} upsets + {ev.spin_runs} spins, {flown}"
     return hook, desc

@@ -24,6 +24,7 @@ from harv_jax.policy import Policy, make_policy, select_seed
 from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo.config import PPOConfig
 from harv_jax.ppo.train import Trainer, TrainingState
+from harv_jax.training.in_loop import split_loop
 
 #: Episode metrics summarised in ``summary.json`` (first and last period).
 SUMMARY_METRICS = ("episode_return", "episode/recovered", "episode/final_omega_radps", "episode/terminated")
@@ -61,14 +62,17 @@ def _nanstat(fn: Callable[[np.ndarray], Any], v: np.ndarray) -> float:
 
 
 def export_seed_policies(
-    pdir: Path, state: TrainingState, trainer: Trainer, cfg: PPOConfig, env_steps: int
+    pdir: Path, state: TrainingState, trainer: Trainer, cfg: PPOConfig, env_steps: int, loop: str = "none"
 ) -> list[Policy]:
-    """Write ``pdir/policy_seed<i>.npz`` for every seed; returns the policies."""
+    """Write ``pdir/policy_seed<i>.npz`` for every seed; returns the policies.
+
+    ``loop``: the loop the policies were trained in (``harv_jax.training.in_loop``), recorded in ``meta``.
+    """
     params, normalizer = jax.device_get((state.params, state.normalizer))
     pols = []
     for s in range(cfg.num_seeds):
         meta = {"seed": s, "config": ppo_config.to_dict(cfg), "env_steps": env_steps,
-                "normalize_observations": cfg.normalize_observations}  # fmt: skip
+                "normalize_observations": cfg.normalize_observations, "loop": loop}  # fmt: skip
         pol = make_policy(select_seed(params, s), select_seed(normalizer, s), trainer.networks,
                           cfg.normalize_observations, meta)  # fmt: skip
         policy_api.export_npz(pdir / f"policy_seed{s}.npz", pol)
@@ -77,7 +81,12 @@ def export_seed_policies(
 
 
 def export_policies(
-    out_dir: Path, state: TrainingState, trainer: Trainer, cfg: PPOConfig, history: list[dict[str, Any]]
+    out_dir: Path,
+    state: TrainingState,
+    trainer: Trainer,
+    cfg: PPOConfig,
+    history: list[dict[str, Any]],
+    loop: str = "none",
 ) -> int:
     """Write ``policy/policy_seed<i>.npz`` per seed and ``policy.npz``/``policy.stablehlo`` of the best.
 
@@ -86,7 +95,7 @@ def export_policies(
     last = np.asarray(history[-1]["episode_return"], np.float64).reshape(-1) if history else np.zeros(1)
     best = int(np.nanargmax(np.where(np.isfinite(last), last, -np.inf))) if np.any(np.isfinite(last)) else 0
     pdir = out_dir / "policy"
-    pols = export_seed_policies(pdir, state, trainer, cfg, history[-1]["env_steps"] if history else 0)
+    pols = export_seed_policies(pdir, state, trainer, cfg, history[-1]["env_steps"] if history else 0, loop)
     policy_api.export_npz(pdir / "policy.npz", pols[best])
     if policy_api.export_available():  # jax.export serialization needs flatbuffers
         policy_api.export_stablehlo(pdir / "policy.stablehlo", pols[best])
@@ -95,7 +104,7 @@ def export_policies(
 
 def save_spin_bank(out_dir: Path, env_table: dict[str, Any], env_params: EnvParams) -> None:
     """``spin_bank.npz`` in the run folder: the bank's states, deflections and provenance (if spin resets)."""
-    flat, nested = settings.split_tables(env_table)
+    flat, nested = settings.split_tables(split_loop(env_table)[1])
     if settings.spin_settings(nested["spin"]).reset_prob <= 0:
         return
     prov = settings.bank_provenance(settings.env_config(flat), nested)

@@ -1,0 +1,118 @@
+"""Controller-in-the-loop training (``harv-jax train --in-loop hybrid[:schedule]``): the wrapped env, one
+trace of the trainer, the loop recorded in the policy file, the warning when a policy flies in another
+loop."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import chex
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from harv_jax.env import EnvConfig, make_env
+from harv_jax.env.episode_metrics import harv_episode_metrics
+from harv_jax.errors import UsageError
+from harv_jax.ppo.config import PPOConfig
+from harv_jax.ppo.train import make_train, seed_keys
+from harv_jax.training.in_loop import LOOPS, make_in_loop_env, parse_loop
+
+REPO = Path(__file__).resolve().parents[1]
+ENV = make_env(EnvConfig(episode_steps=200))
+PARAMS = ENV.default_params()
+
+
+def _first_steps(loop_env, actions: jnp.ndarray, n_steps: int = 50) -> jnp.ndarray:
+    """Wind states of ``n_steps`` steps from the same reset, flying the constant ``actions`` [B, 3]."""
+    b = actions.shape[0]
+    keys = jnp.broadcast_to(jax.random.key(3), (b,))  # the same episode for every row
+    _, st = jax.vmap(loop_env.reset, in_axes=(0, None))(keys, PARAMS)
+
+    def body(st, k):
+        st = jax.vmap(loop_env.step_no_reset, in_axes=(0, 0, 0, None))(
+            jnp.broadcast_to(k, (b,)), st, actions, PARAMS
+        )[1]
+        return st, st.env.wind
+
+    return jax.lax.scan(body, st, jax.random.split(jax.random.key(4), n_steps))[1]
+
+
+ACTIONS = jnp.asarray([[0.5, -0.5, 0.3], [-0.9, 0.9, -0.2], [0.0, 0.0, 0.0]], jnp.float32)
+
+
+def test_zeta_one_flies_the_smc_whatever_the_policy():
+    """With ``always`` (zeta = 1) u = u_SMC: the action does not change the flight (up to float round-off)."""
+    x = _first_steps(make_in_loop_env(ENV, "always"), ACTIONS)
+    np.testing.assert_allclose(x[:, 0], x[:, 1], rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(x[:, 0], x[:, 2], rtol=1e-5, atol=1e-5)
+
+
+def test_the_policy_acts_through_the_gate():
+    """With ``gated`` (and ``never``) the action changes the flight: the policy is in the loop."""
+    for schedule in ("gated", "never"):
+        x = _first_steps(make_in_loop_env(ENV, schedule), ACTIONS)
+        assert float(jnp.max(jnp.abs(x[:, 0] - x[:, 1]))) > 1e-3, schedule
+
+
+def test_interface_and_info():
+    loop_env = make_in_loop_env(ENV, "gated")
+    obs, st = loop_env.reset(jax.random.key(0), PARAMS)
+    chex.assert_shape(obs, (loop_env.observation_size,))
+    obs, st, r, done, info = loop_env.step(jax.random.key(1), st, ACTIONS[0], PARAMS)
+    assert set(info["loop"]) == {"zeta", "policy_unmodified", "fallback"}
+    m = harv_episode_metrics(info)  # the trainer's HARV metrics read the wrapped env's info
+    assert set(m) >= {"recovered", "terminated"}
+    chex.assert_tree_all_finite((obs, r))
+
+
+def test_trainer_traces_once():
+    cfg = PPOConfig(total_steps=16 * 8 * 4, num_envs=16, unroll=8, epochs=1, minibatches=2,
+                    hidden_sizes=(16,), num_periods=2, seed=0, stagger_episodes=True)  # fmt: skip
+    loop_env = make_in_loop_env(ENV, "gated")
+    trainer = make_train(loop_env, cfg, PARAMS, episode_metrics_fn=harv_episode_metrics)
+    state = trainer.init(seed_keys(jax.random.key(0), cfg.num_seeds), PARAMS)
+    for _ in range(2):
+        state, metrics = trainer.period(state, PARAMS)
+    assert trainer.num_traces() == 1
+    assert np.all(np.isfinite(metrics["policy_loss"]))
+
+
+def test_parse_loop():
+    assert parse_loop("hybrid") == "hybrid:gated"
+    assert parse_loop("hybrid:continuous") == "hybrid:continuous"
+    assert parse_loop("none") == "none"
+    assert "hybrid:hysteresis" in LOOPS
+    with pytest.raises(UsageError, match="allowed: none, hybrid:"):
+        parse_loop("hybrid:fast")
+
+
+def test_cli_in_loop_policy_records_its_loop_and_mc_warns(tmp_path):
+    out = tmp_path / "run"
+    train = [sys.executable, "-m", "harv_jax.cli", "train", "--preset", "smoke", "--steps", "1024",
+             "--num-envs", "16", "--minibatches", "4", "--periods", "1", "--in-loop", "hybrid:gated",
+             "--out", str(out)]  # fmt: skip
+    r = subprocess.run(train, capture_output=True, text=True, cwd=REPO, timeout=900)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert json.loads((out / "config.json").read_text())["env"]["loop"] == "hybrid:gated"
+    meta = json.loads(str(np.load(out / "policy" / "policy.npz", allow_pickle=False)["meta"]))
+    assert meta["loop"] == "hybrid:gated"
+
+    mc = [sys.executable, "-m", "harv_jax.cli", "mc", "--runs", "2", "--duration", "1", "--chunk", "2",
+          "--policy", str(out / "policy" / "policy.npz")]  # fmt: skip
+    r = subprocess.run(mc + ["--controller", "rl", "--out", str(tmp_path / "mc1")], capture_output=True,
+                       text=True, cwd=REPO, timeout=900)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "trained in the loop 'hybrid:gated'" in r.stderr and "flies here as 'rl'" in r.stderr
+    r = subprocess.run(mc + ["--controller", "hybrid", "--zeta", "gated", "--out", str(tmp_path / "mc2")],
+                       capture_output=True, text=True, cwd=REPO, timeout=900)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "trained in the loop" not in r.stderr
+
+    r = subprocess.run(train[:-4] + ["--in-loop", "hybrid:fast", "--out", str(tmp_path / "bad")],
+                       capture_output=True, text=True, cwd=REPO, timeout=900)  # fmt: skip
+    assert r.returncode == 2 and r.stderr.strip().count("\n") == 0 and "hybrid:fast" in r.stderr
