@@ -79,6 +79,48 @@ def test_layers_import_downward(package: str, forbidden: tuple[str, ...]) -> Non
     assert _violations(package, forbidden) == []
 
 
+#: The layers, top to bottom (README "Layout"): a module imports only from its own layer or below.
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("harv_jax.cli", "harv_jax.commands"),
+    ("harv_jax.cli_options",),
+    ("harv_jax.report",),
+    ("harv_jax.training",),
+    ("harv_jax.evaluation",),
+    ("harv_jax.plots",),
+    ("harv_jax.env", "harv_jax.control"),
+    ("harv_jax.policy", "harv_jax.policies"),
+    ("harv_jax.ppo",),
+    ("harv_jax.task",),
+    ("harv_jax.dynamics",),
+    ("harv_jax.aircraft",),
+    (
+        "harv_jax.units",
+        "harv_jax.errors",
+        "harv_jax.guards",
+        "harv_jax.numfmt",
+        "harv_jax.outdir",
+        "harv_jax",
+    ),
+)
+
+
+def _layer(module: str) -> int:
+    """Index in LAYERS of the longest prefix that names ``module``'s package."""
+    hits = [(len(p), i) for i, names in enumerate(LAYERS) for p in names if _under(module, p)]
+    assert hits, f"{module} is in no layer: add it to LAYERS (and to the README's Layout)"
+    return max(hits)[1]
+
+
+def test_no_import_goes_up_the_layers() -> None:
+    bad = sorted(
+        f"{mod} imports {dep}"
+        for mod, deps in GRAPH.items()
+        for dep in deps
+        if _under(dep, "harv_jax") and _layer(dep) < _layer(mod)
+    )
+    assert bad == []
+
+
 HARV_SPECIFIC = (
     "harv_jax.aircraft", "harv_jax.dynamics", "harv_jax.task", "harv_jax.env", "harv_jax.control",
     "harv_jax.evaluation", "harv_jax.units", "harv_jax.training", "harv_jax.policies",
