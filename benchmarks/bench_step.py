@@ -30,13 +30,14 @@ sys.path.insert(0, str(ROOT))  # the repository root, for benchmarks.*
 os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=1")
 
 from benchmarks.common import cpu_model, load_average_1min, machine_name, write_json  # noqa: E402
+from harv_jax.policies import DEFAULT_POLICY_SPEC  # noqa: E402
 
 DT_S = 0.01
 #: The issue's targets: SMC step <= 4 x plant step, hybrid step <= 1.3 x SMC step.
-TARGETS = {"smc_over_plant": 4.0, "hybrid_over_smc": 1.3}
+TARGETS = {"smc_over_plant": 4.0, "hybrid_over_smc": 1.3, "hybrid_gated_over_smc": 1.3}
 
 
-def build(batch: int, n_steps: int, policy: str | None, seed: int) -> dict:
+def build(batch: int, n_steps: int, policy: str | None, seed: int, gated: bool = False) -> dict:
     """Compiled plant / smc / hybrid step loops with their arguments, compile times and per-step costs."""
     import jax
     import jax.numpy as jnp
@@ -87,8 +88,11 @@ def build(batch: int, n_steps: int, policy: str | None, seed: int) -> dict:
 
     out = {}
     variants = {"plant": (plant_step, 2, (body0, delta0, hold, params))}
-    for name in ("smc", "hybrid"):
-        ctrl = build_controller(name, ControllerOptions(policy=policy))
+    controllers = {"smc": ("smc", "continuous"), "hybrid": ("hybrid", "continuous")}
+    if gated:  # the certificate-gated schedule (issue 17); not in the pre-issue-18 reference
+        controllers["hybrid_gated"] = ("hybrid", "gated")
+    for name, (kind, zeta) in controllers.items():
+        ctrl = build_controller(kind, ControllerOptions(policy=policy, zeta=zeta))
         cstate0 = jax.vmap(ctrl.init)(params)
         variants[name] = (closed_step(ctrl), 3, (body0, delta0, cstate0, params))
     for name, (step, n_carry, args) in variants.items():
@@ -131,7 +135,7 @@ def main(argv: list[str] | None = None) -> dict:
     machine = machine_name(args.machine)
     load_before = load_average_1min()
     print(f"device {dev.platform}:{dev.device_kind}  jax {jax.__version__}  cpu {cpu_model()}", flush=True)
-    sets = {"current": build(args.batch, args.steps, args.policy, args.seed)}
+    sets = {"current": build(args.batch, args.steps, args.policy, args.seed, gated=True)}
     skipped = None
     if not args.no_reference:
         try:
@@ -166,6 +170,8 @@ def main(argv: list[str] | None = None) -> dict:
             "smc_over_plant": us["smc"] / us["plant"],
             "hybrid_over_smc": us["hybrid"] / us["smc"],
         }
+        if "hybrid_gated" in us:
+            rows[s]["ratios"]["hybrid_gated_over_smc"] = us["hybrid_gated"] / us["smc"]
         print(
             f"{s:>9}: plant {us['plant']:.0f} us/step, smc {us['smc']:.0f}, hybrid {us['hybrid']:.0f} "
             f"(batch {args.batch}): smc/plant {us['smc'] / us['plant']:.2f}, hybrid/smc "
@@ -179,6 +185,8 @@ def main(argv: list[str] | None = None) -> dict:
             k: ref[k]["us_per_step"] / cur[k]["us_per_step"] for k in ("plant", "smc", "hybrid")
         }
         print(f"speed-up over the reference: {rows['speedup_over_reference']}", flush=True)
+    if "hybrid_gated_over_smc" in rows["current"]["ratios"]:
+        print(f"gated hybrid / smc: {rows['current']['ratios']['hybrid_gated_over_smc']:.2f}", flush=True)
     ratios = rows["current"]["ratios"]
     result = {
         "benchmark": "step",
@@ -196,7 +204,7 @@ def main(argv: list[str] | None = None) -> dict:
             "steps_per_call": args.steps,
             "repeats": args.repeats,
             "dt_s": DT_S,
-            "policy": args.policy or "shipped:full",
+            "policy": args.policy or DEFAULT_POLICY_SPEC,
             "seed": args.seed,
             "dtype": "float32",
             "devices_used": 1,

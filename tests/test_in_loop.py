@@ -116,3 +116,10 @@ def test_cli_in_loop_policy_records_its_loop_and_mc_warns(tmp_path):
     r = subprocess.run(train[:-4] + ["--in-loop", "hybrid:fast", "--out", str(tmp_path / "bad")],
                        capture_output=True, text=True, cwd=REPO, timeout=900)  # fmt: skip
     assert r.returncode == 2 and r.stderr.strip().count("\n") == 0 and "hybrid:fast" in r.stderr
+
+
+def test_policies_trained_alone_fly_anywhere_without_a_warning():
+    from harv_jax.control.registry import ControllerOptions, loop_mismatches
+
+    for zeta in ("continuous", "gated"):
+        assert loop_mismatches(["smc", "rl", "hybrid"], ControllerOptions(zeta=zeta)) == []

@@ -161,10 +161,11 @@ def parse_controllers(text: str) -> list[str]:
 
 
 def loop_mismatches(names: Iterable[str], options: ControllerOptions) -> list[str]:
-    """One line per controller in ``names`` that flies the policy in another loop than it was trained in.
+    """One line per controller in ``names`` that flies a policy trained in a loop in another loop.
 
     The policy file's ``meta["loop"]`` (absent: ``none``, trained alone) is compared with the entry's
-    ``loop``; e.g. a policy trained with ``train --in-loop hybrid:gated`` flown as ``rl``.
+    ``loop``; e.g. a policy trained with ``train --in-loop hybrid:gated`` flown as ``rl`` or with
+    ``--zeta continuous``. A policy trained alone flown in a hybrid is the paper's design: no line.
     """
     lines = []
     for name in names:
@@ -176,7 +177,7 @@ def loop_mismatches(names: Iterable[str], options: ControllerOptions) -> list[st
 
         trained = str(resolve_policy(options.policy).meta.get("loop", "none"))
         flown = entry.loop(options)
-        if trained != flown:
+        if trained not in ("none", flown):
             spec = options.policy or DEFAULT_POLICY_SPEC
             lines.append(
                 f"the policy {spec!r} was trained in the loop {trained!r} and flies here as {name!r} "
