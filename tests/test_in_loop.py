@@ -53,24 +53,23 @@ def test_zeta_one_flies_the_smc_whatever_the_policy():
 
 
 def test_the_policy_acts_through_the_gate():
-    """With ``gated`` (and ``never``) the action changes the flight: the policy is in the loop."""
-    for schedule in ("gated", "never"):
-        x = _first_steps(make_in_loop_env(ENV, schedule), ACTIONS)
-        assert float(jnp.max(jnp.abs(x[:, 0] - x[:, 1]))) > 1e-3, schedule
+    """With ``gated`` the action changes the flight: the policy is in the loop."""
+    x = _first_steps(make_in_loop_env(ENV, "gated"), ACTIONS)
+    assert float(jnp.max(jnp.abs(x[:, 0] - x[:, 1]))) > 1e-3
 
 
 def test_interface_and_info():
     loop_env = make_in_loop_env(ENV, "gated")
-    obs, st = loop_env.reset(jax.random.key(0), PARAMS)
+    obs, st = jax.jit(loop_env.reset)(jax.random.key(0), PARAMS)
     chex.assert_shape(obs, (loop_env.observation_size,))
-    obs, st, r, done, info = loop_env.step(jax.random.key(1), st, ACTIONS[0], PARAMS)
+    obs, st, r, done, info = jax.jit(loop_env.step)(jax.random.key(1), st, ACTIONS[0], PARAMS)
     assert set(info["loop"]) == {"zeta", "policy_unmodified", "fallback"}
     m = harv_episode_metrics(info)  # the trainer's HARV metrics read the wrapped env's info
     assert set(m) >= {"recovered", "terminated"}
     chex.assert_tree_all_finite((obs, r))
 
 
-def test_trainer_traces_once():
+def test_trainer_traces_once_and_its_policies_record_the_loop(tmp_path):
     cfg = PPOConfig(total_steps=16 * 8 * 4, num_envs=16, unroll=8, epochs=1, minibatches=2,
                     hidden_sizes=(16,), num_periods=2, seed=0, stagger_episodes=True)  # fmt: skip
     loop_env = make_in_loop_env(ENV, "gated")
@@ -80,6 +79,18 @@ def test_trainer_traces_once():
         state, metrics = trainer.period(state, PARAMS)
     assert trainer.num_traces() == 1
     assert np.all(np.isfinite(metrics["policy_loss"]))
+
+    # the exported policy records its loop; flying it in another loop is flagged, in its own loop not
+    from harv_jax.control.registry import ControllerOptions, loop_mismatches
+    from harv_jax.training.outputs import export_seed_policies
+
+    export_seed_policies(tmp_path, state, trainer, cfg, 1, loop=loop_env.loop)
+    path = str(tmp_path / "policy_seed0.npz")
+    meta = json.loads(str(np.load(path, allow_pickle=False)["meta"]))
+    assert meta["loop"] == "hybrid:gated"
+    [line] = loop_mismatches(["smc", "rl", "hybrid"], ControllerOptions(policy=path, zeta="gated"))
+    assert "trained in the loop 'hybrid:gated'" in line and "flies here as 'rl'" in line
+    assert len(loop_mismatches(["hybrid"], ControllerOptions(policy=path, zeta="continuous"))) == 1
 
 
 def test_parse_loop():
@@ -91,6 +102,7 @@ def test_parse_loop():
         parse_loop("hybrid:fast")
 
 
+@pytest.mark.slow
 def test_cli_in_loop_policy_records_its_loop_and_mc_warns(tmp_path):
     out = tmp_path / "run"
     train = [sys.executable, "-m", "harv_jax.cli", "train", "--preset", "smoke", "--steps", "1024",
