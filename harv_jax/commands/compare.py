@@ -35,7 +35,6 @@ def register(app: typer.Typer) -> None:
         """RL vs SMC vs hybrid on the spin and a fixed state: overlaid histories, metrics table (md, csv)."""
         from harv_jax.cli_options import check_fly_options, command_line, load_state_file, warn_loop_mismatch
         from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
-        from harv_jax.evaluation.comparison import FIXED_STATE, compare, write_comparison
         from harv_jax.guards import check_seed
         from harv_jax.outdir import prepare_out_dir
 
@@ -45,11 +44,15 @@ def register(app: typer.Typer) -> None:
             check_fly_options(name, "sat", target_alpha, duration, spin_s)
             build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
         warn_loop_mismatch(names, policy, zeta)
-        fixed_state = FIXED_STATE
+        fixed_state = None
         if state is not None:
             if not state.is_file():
                 raise UsageError(f"--state {str(state)!r} does not exist")
             fixed_state = load_state_file(state)
+        # the heavy imports (jax) only after the arguments are checked: bad input fails fast
+        from harv_jax.evaluation.comparison import FIXED_STATE, compare, write_comparison
+
+        fixed_state = FIXED_STATE if fixed_state is None else fixed_state
         out_dir = prepare_out_dir(out, force)
         comp = compare(names, policy, zeta, target_alpha, duration, spin_s, fixed_state, seed, typer.echo)
         write_comparison(out_dir, comp, command_line())

@@ -38,9 +38,6 @@ def register(app: typer.Typer) -> None:
         hybrid.png for the hybrid)."""
         from harv_jax.cli_options import SCENARIOS, check_fly_options, load_state_file, warn_loop_mismatch
         from harv_jax.control.registry import ControllerOptions, build_controller
-        from harv_jax.evaluation.flight import fly as fly_scenario
-        from harv_jax.evaluation.flight import write_flight
-        from harv_jax.evaluation.summary import flight_settings
         from harv_jax.guards import check_seed
         from harv_jax.outdir import prepare_out_dir
         from harv_jax.task.spec import DT_S
@@ -49,6 +46,11 @@ def register(app: typer.Typer) -> None:
         check_seed(seed)
         # validate the state file, the policy and zeta before creating the output directory
         state = scenario if scenario in SCENARIOS else load_state_file(Path(scenario))
+        # the heavy imports (jax) only after the arguments are checked: bad input fails fast
+        from harv_jax.evaluation.flight import fly as fly_scenario
+        from harv_jax.evaluation.flight import write_flight
+        from harv_jax.evaluation.summary import flight_settings
+
         build_controller(controller, ControllerOptions(policy=policy, zeta=zeta, switching=switching))
         warn_loop_mismatch([controller], policy, zeta)
         out_dir = prepare_out_dir(out, force)

@@ -31,7 +31,6 @@ def register(app: typer.Typer) -> None:
         """Monte Carlo: same sampled aircraft/initial states for every controller; summary + figures."""
         from harv_jax.cli_options import check_mc_options, command_line, warn_loop_mismatch
         from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
-        from harv_jax.evaluation.mc_study import monte_carlo, write_monte_carlo
         from harv_jax.guards import check_closed_loop_batch, check_seed
         from harv_jax.outdir import prepare_out_dir
 
@@ -39,6 +38,9 @@ def register(app: typer.Typer) -> None:
         check_mc_options(runs, target_alpha, duration, chunk)
         check_seed(seed)
         check_closed_loop_batch(runs, round(duration / DT_S), 10, chunk, len(names))
+        # the heavy imports (jax) only after the arguments are checked: bad input fails fast
+        from harv_jax.evaluation.mc_study import monte_carlo, write_monte_carlo
+
         for name in names:  # fail fast, before creating the output directory
             build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
         warn_loop_mismatch(names, policy, zeta)

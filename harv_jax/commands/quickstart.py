@@ -35,18 +35,20 @@ def register(app: typer.Typer) -> None:
         """Spin comparison and a Monte Carlo of SMC, RL and hybrid with the shipped policy, plus a report."""
         from harv_jax.cli_options import check_mc_options, command_line, warn_loop_mismatch
         from harv_jax.control.registry import ControllerOptions, build_controller
-        from harv_jax.evaluation.comparison import FIXED_STATE, compare, write_comparison
-        from harv_jax.evaluation.mc_study import monte_carlo, write_monte_carlo
         from harv_jax.guards import check_closed_loop_batch, check_seed
         from harv_jax.numfmt import fmt_num
         from harv_jax.outdir import prepare_out_dir
-        from harv_jax.report import build_report
         from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
         names = list(QUICKSTART_CONTROLLERS)
         check_mc_options(runs, ALPHA_TARGET_RAD, DURATION_S, CHUNK)
         check_seed(seed)
         check_closed_loop_batch(runs, round(DURATION_S / DT_S), 10, CHUNK, len(names))
+        # the heavy imports (jax) only after the arguments are checked: bad input fails fast
+        from harv_jax.evaluation.comparison import FIXED_STATE, compare, write_comparison
+        from harv_jax.evaluation.mc_study import monte_carlo, write_monte_carlo
+        from harv_jax.report import build_report
+
         for name in names:
             build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
         warn_loop_mismatch(names, policy, zeta)

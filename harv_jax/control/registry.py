@@ -15,9 +15,12 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING
 
-from harv_jax.control.base import Controller
 from harv_jax.errors import UsageError
+
+if TYPE_CHECKING:  # the table stays importable without jax (the CLI checks its arguments first)
+    from harv_jax.control.base import Controller
 
 #: Option names a builder may read (fields of ControllerOptions).
 OPTION_NAMES = ("policy", "zeta", "switching")
