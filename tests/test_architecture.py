@@ -197,29 +197,26 @@ def _code_lines(path: Path) -> list[tuple[int, str]]:
     return out
 
 
-@pytest.mark.parametrize("name", sorted(CONSTANTS))
-def test_paper_constant_defined_once(name: str) -> None:
-    pattern, home = CONSTANTS[name]
-    rx = re.compile(pattern)
-    hits = [
+def _code_hits(rx: re.Pattern[str], home: str) -> list[str]:
+    """``file:line: code`` of every code line outside ``home`` that ``rx`` matches."""
+    return [
         f"{p.relative_to(PKG)}:{i}: {code.strip()}"
         for p in MODULES
         if str(p.relative_to(PKG)) != home
         for i, code in _code_lines(p)
         if rx.search(code)
     ]
-    assert hits == [], f"{name} written outside {home}"
+
+
+@pytest.mark.parametrize("name", sorted(CONSTANTS))
+def test_paper_constant_defined_once(name: str) -> None:
+    pattern, home = CONSTANTS[name]
+    rx = re.compile(pattern)
+    assert _code_hits(rx, home) == [], f"{name} written outside {home}"
     assert any(rx.search(code) for _, code in _code_lines(PKG / home)), f"{name} missing from {home}"
 
 
 def test_dt_literal_only_in_spec() -> None:
     """``0.01`` as a step size (``dt``/``DT`` on the line) lives in task/spec.py only."""
     rx = re.compile(r"dt\w*\s*[:=].*(?<![\d.])0\.01(?!\d)", re.IGNORECASE)
-    hits = [
-        f"{p.relative_to(PKG)}:{i}: {code.strip()}"
-        for p in MODULES
-        if str(p.relative_to(PKG)) != SPEC
-        for i, code in _code_lines(p)
-        if rx.search(code)
-    ]
-    assert hits == []
+    assert _code_hits(rx, SPEC) == []

@@ -170,15 +170,15 @@ def loop_mismatches(names: Iterable[str], options: ControllerOptions) -> list[st
     ``loop``; e.g. a policy trained with ``train --in-loop hybrid:gated`` flown as ``rl`` or with
     ``--zeta continuous``. A policy trained alone flown in a hybrid is the paper's design: no line.
     """
-    lines = []
-    for name in names:
-        entry = CONTROLLERS.get(name)
-        if entry is None or entry.loop is None:
-            continue
-        from harv_jax.policies import DEFAULT_POLICY_SPEC
-        from harv_jax.policy import resolve_policy
+    entries = {n: CONTROLLERS[n] for n in names if n in CONTROLLERS and CONTROLLERS[n].loop is not None}
+    if not entries:
+        return []
+    from harv_jax.policies import DEFAULT_POLICY_SPEC
+    from harv_jax.policy import resolve_policy
 
-        trained = str(resolve_policy(options.policy).meta.get("loop", "none"))
+    trained = str(resolve_policy(options.policy).meta.get("loop", "none"))  # one load for all controllers
+    lines = []
+    for name, entry in entries.items():
         flown = entry.loop(options)
         if trained not in ("none", flown):
             spec = options.policy or DEFAULT_POLICY_SPEC

@@ -143,6 +143,29 @@ class Env(NamedTuple):
     action_size: int = ACTION_SIZE
 
 
+def with_auto_reset(step_no_reset: Callable[..., tuple], reset: Callable[..., tuple]) -> Callable[..., tuple]:
+    """``step(key, state, action, params) -> (obs, state, reward, done, info)`` with auto-reset.
+
+    Built from ``step_no_reset`` (-> obs, state, reward, terminated, truncated, info) and ``reset``; the
+    state needs a ``wind`` attribute. When ``done`` the returned obs and state are the new episode's; ``info``
+    gains ``final_obs`` and ``final_state_wind`` of the state the finished episode reached (module docstring).
+    """
+
+    def step(key: jax.Array, state: Any, action: jnp.ndarray, params: Any):
+        k_step, k_reset = jax.random.split(key)
+        del key
+        obs, new_state, rew, terminated, truncated, info = step_no_reset(k_step, state, action, params)
+        done = terminated | truncated
+        obs_reset, state_reset = reset(k_reset, params)
+        info["final_obs"] = obs
+        info["final_state_wind"] = new_state.wind
+        state_out = jax.tree.map(lambda r, s: jnp.where(done, r, s), state_reset, new_state)
+        obs_out = jnp.where(done, obs_reset, obs)
+        return obs_out, state_out, rew, done, info
+
+    return step
+
+
 def make_env(config: EnvConfig | None = None) -> Env:
     """Build the pure reset/step functions for a static config.
 
@@ -303,18 +326,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
         """
         return _step_from_uniform(_uniform(key, n_step_u, params), state, action, params)
 
-    def step(key: jax.Array, state: EnvState, action: jnp.ndarray, params: EnvParams):
-        """One step with auto-reset: (obs, state, reward, done, info); see the module docstring."""
-        k_step, k_reset = jax.random.split(key)
-        del key
-        obs, new_state, rew, terminated, truncated, info = step_no_reset(k_step, state, action, params)
-        done = terminated | truncated
-        obs_reset, state_reset = reset(k_reset, params)
-        info["final_obs"] = obs
-        info["final_state_wind"] = new_state.wind
-        state_out = jax.tree.map(lambda r, s: jnp.where(done, r, s), state_reset, new_state)
-        obs_out = jnp.where(done, obs_reset, obs)
-        return obs_out, state_out, rew, done, info
+    step = with_auto_reset(step_no_reset, reset)
 
     def batch_step(keys: jax.Array, states: EnvState, actions: jnp.ndarray, params: EnvParams):
         """``vmap(step)`` over a batch, computing the resets only when some env of the batch is done.

@@ -25,6 +25,7 @@ import jax.numpy as jnp
 from harv_jax.control.hybrid import ZETA_SCHEDULES, HybridConfig, HybridGains, HybridState, make_hybrid
 from harv_jax.control.smc import SMCConfig
 from harv_jax.env import Env, EnvState
+from harv_jax.env.recovery import with_auto_reset
 from harv_jax.errors import UsageError
 from harv_jax.task.spaces import command_to_action
 
@@ -146,16 +147,7 @@ def make_in_loop_env(env: Env, schedule: str = "gated", gains: HybridGains | Non
         }
         return obs, InLoopState(env=es_new, ctrl=ctrl), reward, terminated, truncated, info
 
-    def step(key: jax.Array, state: InLoopState, action: jnp.ndarray, params: Any):
-        k_step, k_reset = jax.random.split(key)
-        del key
-        obs, new_state, reward, terminated, truncated, info = step_no_reset(k_step, state, action, params)
-        done = terminated | truncated
-        obs_reset, state_reset = reset(k_reset, params)
-        info["final_obs"] = obs
-        info["final_state_wind"] = new_state.env.wind
-        state_out = jax.tree.map(lambda r, s: jnp.where(done, r, s), state_reset, new_state)
-        return jnp.where(done, obs_reset, obs), state_out, reward, done, info
+    step = with_auto_reset(step_no_reset, reset)
 
     def batch_step(keys: jax.Array, states: InLoopState, actions: jnp.ndarray, params: Any):
         return jax.vmap(step, in_axes=(0, 0, 0, None))(keys, states, actions, params)
