@@ -24,7 +24,7 @@ POLICY_HELP = (
 )
 ZETA_HELP = (
     "Hybrid zeta schedule: continuous, hysteresis (the paper's), gated (per channel, from the reaching "
-    "condition), always, never."
+    "condition), simplex (the policy alone until a monitor hands over to the SMC for good), always, never."
 )
 MAX_RUNS = 1_000_000
 MAX_DURATION_S = 600.0

@@ -11,6 +11,11 @@ One step, for the wind state x and the reference y_ref:
 4. zeta from the schedule (``harv_jax.control.scheduling``; 1 in fallback);
 5. u = u_RL + zeta u_fb, then the position/rate box of the safety filter (``safety.filter_command``).
 
+The ``simplex`` schedule (Simplex architecture) lets the policy act alone (zeta = 0) and hands over to the SMC
+for good (zeta = 1, u_RL = 0) on the first step the supervisor falls back, the policy's command is non-finite,
+or, from a deadline on, a tracking error leaves a tube (``scheduling.simplex_step``): the policy's speed is
+kept where it recovers, and the SMC's recovery covers the rest.
+
 The ``gated`` schedule replaces 4-5 by ``harv_jax.control.gate``: a zeta per channel, the least that keeps
 the reaching condition for the command that acts (clipped to this step's box), u = u_RL + A^-1 (zeta (.)
 A u_fb) (= u_RL + zeta u_fb for equal zetas); the SMC's integral then runs at every step (s contains it,
@@ -38,20 +43,40 @@ from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
 from harv_jax.control.gate import GateGains, certificate_holds, default_gate_gains, gate
 from harv_jax.control.safety import cap_authority, filter_command, limit_box
-from harv_jax.control.scheduling import ZetaState, continuous_zeta, hysteresis_step, zeta_init
+from harv_jax.control.scheduling import (
+    SIMPLEX_REASONS,
+    SimplexGains,
+    SimplexState,
+    ZetaState,
+    continuous_zeta,
+    hysteresis_step,
+    simplex_init,
+    simplex_step,
+    zeta_init,
+)
 from harv_jax.control.smc import SMCConfig, SMCGains, default_gains, smc_command, update_integral
 from harv_jax.control.supervisor import (
     SupervisorGains,
     SupervisorState,
     default_supervisor_gains,
+    outside_box,
     record_intervention,
     supervise,
     supervisor_init,
 )
+from harv_jax.task.criteria import tracking_errors
 from harv_jax.task.spaces import action_to_command, observation
+from harv_jax.task.spec import (
+    ALPHA_MIN_RAD,
+    RECOVERY_ALPHA_TOL_RAD,
+    RECOVERY_BETA_TOL_RAD,
+    RECOVERY_MU_TOL_RAD,
+    V_MAX_FPS,
+    V_MIN_FPS,
+)
 
-ZetaSchedule = Literal["hysteresis", "continuous", "gated", "always", "never"]
-ZETA_SCHEDULES: tuple[str, ...] = ("hysteresis", "continuous", "gated", "always", "never")
+ZetaSchedule = Literal["hysteresis", "continuous", "gated", "simplex", "always", "never"]
+ZETA_SCHEDULES: tuple[str, ...] = ("hysteresis", "continuous", "gated", "simplex", "always", "never")
 
 
 @struct.dataclass
@@ -70,6 +95,7 @@ class HybridGains:
         gate: GateGains of the ``gated`` schedule (``harv_jax.control.gate``; every schedule logs its
             certificate).
         supervisor: SupervisorGains.
+        simplex: SimplexGains of the ``simplex`` schedule.
     """
 
     smc: SMCGains
@@ -80,6 +106,7 @@ class HybridGains:
     authority_frac: jnp.ndarray
     gate: GateGains
     supervisor: SupervisorGains
+    simplex: SimplexGains
 
 
 #: The paper's tube: e_on = 0.05 rad on every channel (e_off is not given; 0.02 rad here).
@@ -95,6 +122,17 @@ DEFAULT_E_OFF_RAD = (0.01, 0.005, 0.01)
 #: law's steady bias (full policy, 256 runs: terminal alpha error 0.76 deg -> 0.017 deg, recovery 99.2% ->
 #: 100%; ``experiments/hybrid_sweep/README.md``). Set 0 for the paper's tube.
 DEFAULT_ZETA_FLOOR = 0.2
+#: ``simplex`` schedule: the policy must hold every tracking error inside twice the recovery criterion's
+#: tolerance from 10 s after engagement on, or the SMC takes over (``experiments/hybrid_simplex/``).
+DEFAULT_SIMPLEX_DEADLINE_S = 10.0
+#: ``simplex`` box of [V, alpha, beta, p, q, r] (ft/s, rad, rad/s): the states the SMC is shown to recover
+#: from, with a margin: the paper's reset bounds and 256 developed spins of the spin bank (alpha up to
+#: 1.49 rad, |beta| 0.31 rad, |r| 1.92 rad/s), V and alpha up to the envelope's limits.
+DEFAULT_SIMPLEX_BOX_LOW = (V_MIN_FPS, ALPHA_MIN_RAD, -0.35, -2.5, -2.0, -2.2)
+DEFAULT_SIMPLEX_BOX_HIGH = (V_MAX_FPS, 1.5, 0.35, 2.5, 2.0, 2.2)
+DEFAULT_SIMPLEX_TUBE_RAD = tuple(
+    2.0 * t for t in (RECOVERY_ALPHA_TOL_RAD, RECOVERY_BETA_TOL_RAD, RECOVERY_MU_TOL_RAD)
+)
 
 
 def default_hybrid_gains(dtype=None) -> HybridGains:
@@ -111,6 +149,12 @@ def default_hybrid_gains(dtype=None) -> HybridGains:
         authority_frac=jnp.ones((3,), dtype),
         gate=default_gate_gains(smc),
         supervisor=default_supervisor_gains(dtype),
+        simplex=SimplexGains(
+            box_low=jnp.asarray(DEFAULT_SIMPLEX_BOX_LOW, dtype),
+            box_high=jnp.asarray(DEFAULT_SIMPLEX_BOX_HIGH, dtype),
+            deadline_s=jnp.asarray(DEFAULT_SIMPLEX_DEADLINE_S, dtype),
+            tube_rad=jnp.asarray(DEFAULT_SIMPLEX_TUBE_RAD, dtype),
+        ),
     )
 
 
@@ -120,7 +164,8 @@ class HybridConfig:
 
     Attributes:
         schedule: zeta schedule: ``continuous`` (default, as the CLI), ``hysteresis`` (the paper's tube),
-            ``gated`` (per channel, from the reaching condition: ``harv_jax.control.gate``), ``always``
+            ``gated`` (per channel, from the reaching condition: ``harv_jax.control.gate``), ``simplex``
+            (zeta = 0 until a monitor trips, then 1 for good: ``scheduling.simplex_step``), ``always``
             (zeta = 1), ``never`` (zeta = 0, the filtered RL-only law).
         smc: SMCConfig of the feedback term.
         supervisor: enable the fallback supervisor.
@@ -150,6 +195,7 @@ class HybridState:
         zeta: ZetaState of the hysteresis schedule.
         zeta_gate: [3] zeta of the previous step (the ``gated`` schedule's release floor).
         supervisor: SupervisorState.
+        simplex: SimplexState of the ``simplex`` schedule.
         interventions: int32 [3] per-channel count of steps the filter changed the command.
     """
 
@@ -159,6 +205,7 @@ class HybridState:
     zeta: ZetaState
     zeta_gate: jnp.ndarray
     supervisor: SupervisorState
+    simplex: SimplexState
     interventions: jnp.ndarray
 
 
@@ -179,9 +226,11 @@ def make_hybrid(
         policy_unmodified (the command that acts is the policy's, bit for bit), correction_rad [3]
         (|u - u_RL|), fallback, fallback_entered, fallback_reason, u_rl_rad [3], u_fb_rad [3],
         u_unfiltered_rad [3], cap_active [3], limit_active [3], intervened, e, e_dot, s [3], w_mu, saturated,
-        integral_rad_s [3], and the certificate (``control.gate.certificate_holds``) of the command that
-        acts, split by whether the box clipped it: cert_free_defined, cert_free_holds, cert_sat_defined,
-        cert_sat_holds (bool [3]; defined: solve exact, channel in its sliding mode).
+        integral_rad_s [3], the certificate (``control.gate.certificate_holds``) of the command that acts,
+        split by whether the box clipped it: cert_free_defined, cert_free_holds, cert_sat_defined,
+        cert_sat_holds (bool [3]; defined: solve exact, channel in its sliding mode), and with the
+        ``simplex`` schedule handover_box, handover_deadline, handover_nonfinite (it handed over to the SMC
+        for that reason, at this step or before).
     """
     cfg = HybridConfig() if cfg is None else cfg
     g = default_hybrid_gains() if gains is None else gains
@@ -197,18 +246,27 @@ def make_hybrid(
             zeta=zeta_init(dtype),
             zeta_gate=z3,
             supervisor=supervisor_init(cfg.window_steps, dtype),
+            simplex=simplex_init(dtype),
             interventions=jnp.zeros((3,), jnp.int32),
         )
 
     def apply(state: HybridState, x_wind: jnp.ndarray, reference_rad: jnp.ndarray, key: jax.Array):
         del key  # deterministic
         params = state.params
-        sup = supervise(state.supervisor, x_wind, g.supervisor, dt_s) if cfg.supervisor else state.supervisor
+        supervised = cfg.supervisor and cfg.schedule != "simplex"  # simplex: its own monitor
+        sup = supervise(state.supervisor, x_wind, g.supervisor, dt_s) if supervised else state.supervisor
         fallback = sup.fallback
 
         a = jnp.clip(act(observation(x_wind, reference_rad)), -1.0, 1.0)
         u_rl_raw = action_to_command(a, params.u_min_rad, params.u_max_rad).astype(state.u_prev_rad.dtype)
         u_rl, cap_active = cap_authority(u_rl_raw, params, g.authority_frac)
+        simplex = state.simplex
+        if cfg.schedule == "simplex":  # decided before u_fb: once latched the SMC flies without the policy
+            simplex = simplex_step(
+                simplex, outside_box(x_wind, g.simplex.box_low, g.simplex.box_high),
+                tracking_errors(x_wind, reference_rad), jnp.all(jnp.isfinite(u_rl)), g.simplex, dt_s,
+            )  # fmt: skip
+            fallback = fallback | simplex.latched
         u_rl = jnp.where(fallback, 0.0, u_rl)
 
         u_fb, terms = smc_command(
@@ -231,6 +289,8 @@ def make_hybrid(
             zeta = g.zeta_floor + (1.0 - g.zeta_floor) * zstate.on.astype(u_fb.dtype)
         elif cfg.schedule == "continuous":
             zeta = g.zeta_floor + (1.0 - g.zeta_floor) * continuous_zeta(terms.e, g.e_on_rad, g.e_off_rad)
+        elif cfg.schedule == "simplex":
+            zeta = jnp.zeros((), u_fb.dtype)  # 1 once latched (fallback below)
         elif cfg.schedule == "always":
             zeta = jnp.ones((), u_fb.dtype)
         else:
@@ -267,6 +327,7 @@ def make_hybrid(
             zeta=zstate,
             zeta_gate=zeta_ch,
             supervisor=sup,
+            simplex=simplex,
             interventions=state.interventions + chan.astype(jnp.int32),
         )
         info = {
@@ -275,8 +336,8 @@ def make_hybrid(
             "zeta_switched": switched,
             "policy_unmodified": ~fallback & jnp.all(u == u_rl_raw),
             "correction_rad": jnp.abs(u - u_rl),
-            "fallback": fallback,
-            "fallback_entered": fallback & ~state.supervisor.fallback,
+            "fallback": sup.fallback,
+            "fallback_entered": sup.fallback & ~state.supervisor.fallback,
             "fallback_reason": sup.reason,
             "u_rl_rad": u_rl,
             "u_fb_rad": u_fb,
@@ -295,6 +356,8 @@ def make_hybrid(
             "cert_sat_defined": defined & boxed,
             "cert_sat_holds": defined & boxed & holds,
         }
+        if cfg.schedule == "simplex":
+            info.update({f"handover_{r}": simplex.reason == i for i, r in enumerate(SIMPLEX_REASONS) if i})
         return u, new_state, info
 
     return Controller(init=init, apply=apply)

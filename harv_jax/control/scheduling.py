@@ -85,3 +85,71 @@ def continuous_zeta(e_rad: jnp.ndarray, e_on_rad: jnp.ndarray, e_off_rad: jnp.nd
     z = jnp.max(jnp.clip((err - e_off_rad) / jnp.maximum(e_on_rad - e_off_rad, 1e-9), 0.0, 1.0))
     z = z * z * (3.0 - 2.0 * z)
     return jnp.where(jnp.all(jnp.isfinite(err)), z, 1.0)
+
+
+@struct.dataclass
+class SimplexGains:
+    """Traced settings of the ``simplex`` schedule (Simplex architecture: Sha 2001; Seto et al. 1998).
+
+    Attributes:
+        box_low, box_high: [6] box of [V, alpha, beta, p, q, r] (ft/s, rad, rad/s) the policy may fly in.
+        deadline_s: from this time on the tracking errors must stay inside ``tube_rad``, s.
+        tube_rad: [3] |e_alpha|, |e_beta|, |e_mu| allowed from the deadline on, rad.
+    """
+
+    box_low: jnp.ndarray
+    box_high: jnp.ndarray
+    deadline_s: jnp.ndarray
+    tube_rad: jnp.ndarray
+
+
+@struct.dataclass
+class SimplexState:
+    """State of the ``simplex`` schedule.
+
+    Attributes:
+        time_s: time since engagement, s.
+        latched: bool, the SMC has taken over for good.
+        reason: int32 index in ``SIMPLEX_REASONS`` of the take-over (0: none yet).
+    """
+
+    time_s: jnp.ndarray
+    latched: jnp.ndarray
+    reason: jnp.ndarray
+
+
+def simplex_init(dtype) -> SimplexState:
+    """The policy in charge at engagement."""
+    return SimplexState(
+        time_s=jnp.zeros((), dtype), latched=jnp.asarray(False), reason=jnp.asarray(0, jnp.int32)
+    )
+
+
+#: Why the ``simplex`` schedule handed over to the SMC (``SimplexState.reason`` indexes it).
+SIMPLEX_REASONS: tuple[str, ...] = ("none", "box", "deadline", "nonfinite")
+
+
+def simplex_step(
+    state: SimplexState,
+    outside_box: jnp.ndarray,
+    e_rad: jnp.ndarray,
+    command_finite: jnp.ndarray,
+    gains: SimplexGains,
+    dt_s: float,
+) -> SimplexState:
+    """One step of the ``simplex`` schedule: zeta = 0 (the policy acts alone) until the first step on which
+    the state is outside the box (``outside_box``), the policy's command is non-finite, or, from
+    ``deadline_s`` on, a tracking error is outside ``tube_rad``; from then on zeta = 1 (the SMC) for good.
+
+    Returns:
+        the new state, whose ``latched`` is zeta for this step.
+    """
+    outside_tube = ~jnp.all(jnp.abs(e_rad) < gains.tube_rad)  # a non-finite error counts as outside
+    late = (state.time_s >= gains.deadline_s - 0.5 * dt_s) & outside_tube  # half a step: float sums
+    why = jnp.where(outside_box, 1, jnp.where(~command_finite, 3, jnp.where(late, 2, 0))).astype(jnp.int32)
+    enter = ~state.latched & (why > 0)
+    return SimplexState(
+        time_s=state.time_s + dt_s,
+        latched=state.latched | enter,
+        reason=jnp.where(enter, why, state.reason),
+    )

@@ -103,11 +103,15 @@ def supervisor_init(window_steps: int, dtype) -> SupervisorState:
     )
 
 
+def outside_box(x_wind: jnp.ndarray, box_low: jnp.ndarray, box_high: jnp.ndarray) -> jnp.ndarray:
+    """bool: [V, alpha, beta, p, q, r] of ``x_wind`` outside [box_low, box_high] (or non-finite)."""
+    z = jnp.stack([x_wind[i] for i in SUPERVISED_INDEX])
+    return ~jnp.all((z >= box_low) & (z <= box_high))
+
+
 def out_of_envelope(x_wind: jnp.ndarray, gains: SupervisorGains) -> jnp.ndarray:
     """bool: [V, alpha, beta, p, q, r] outside the trusted box (or non-finite)."""
-    z = jnp.stack([x_wind[i] for i in SUPERVISED_INDEX])
-    inside = jnp.all((z >= gains.box_low) & (z <= gains.box_high))
-    return ~inside
+    return outside_box(x_wind, gains.box_low, gains.box_high)
 
 
 def supervise(

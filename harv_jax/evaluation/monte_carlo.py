@@ -237,3 +237,22 @@ def gate_summary(info: dict[str, Any]) -> dict[str, Any]:
             "its sliding mode",
         },
     }
+
+
+#: The ``simplex`` schedule's reasons to hand over to the SMC (``control.scheduling.SIMPLEX_REASONS``).
+HANDOVER_REASONS = ("box", "deadline", "nonfinite")
+
+
+def simplex_summary(info: dict[str, Any]) -> dict[str, Any]:
+    """Fraction of runs in which the ``simplex`` schedule handed over to the SMC, in all and by reason.
+    Empty for controllers without these diagnostics."""
+    keys = [f"handover_{r}" for r in HANDOVER_REASONS]
+    if not all(k in info for k in keys):
+        return {}
+    handed = {r: np.asarray(info[k]) > 0 for r, k in zip(HANDOVER_REASONS, keys, strict=True)}
+    return {
+        "handover_run_fraction": {
+            "any": float(np.mean(np.any(np.stack(list(handed.values())), axis=0))),
+            **{r: float(np.mean(h)) for r, h in handed.items()},
+        }
+    }

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from harv_jax.evaluation.metrics import RunMetrics
-from harv_jax.evaluation.monte_carlo import MCRunOutput, gate_summary
+from harv_jax.evaluation.monte_carlo import MCRunOutput, gate_summary, simplex_summary
 from harv_jax.task.criteria import OUTCOME_NAMES
 
 #: Key of the fraction of runs recovered, in every summary.
@@ -82,6 +82,7 @@ def summarize_controller(
         "fallback_fraction": float(np.mean(info["fallback"])) if "fallback" in info else None,
         "fallbacks_per_run": per_run("fallback_entered"),
         **gate_summary(info),
+        **simplex_summary(info),
     }
     return {
         RECOVERY_RATE: float(rec.mean()) if n else None,

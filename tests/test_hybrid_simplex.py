@@ -1,0 +1,202 @@
+"""The hybrid's ``simplex`` schedule: the policy alone until a monitor trips, then the SMC for good."""
+
+from __future__ import annotations
+
+import functools
+
+import chex
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from harv_jax.aircraft import harv
+from harv_jax.control import make_smc
+from harv_jax.control.hybrid import HybridConfig, default_hybrid_gains, make_hybrid
+from harv_jax.control.rl import make_rl_controller
+from harv_jax.control.scheduling import SIMPLEX_REASONS, simplex_init, simplex_step
+from harv_jax.evaluation import closed_loop
+from harv_jax.task.scenarios import sample_table_states
+
+FAST_COMPILE = {"xla_backend_optimization_level": 0}
+REF = jnp.array([0.349, 0.0, 0.0])
+DT = 0.01
+#: A disturbed state inside the default box: alpha 0.6, p 0.5, r 0.3.
+X0 = jnp.array([500.0, 0.60, 0.05, 0.5, -0.05, 0.3, 0.4, 0.1, 0.0, 20000.0])
+SPIN_DELTA0 = jnp.array([-0.436, 0.436, 0.524])
+SIMPLEX = HybridConfig(schedule="simplex")
+SMC = make_smc()  # one object: ``_fly`` compiles it once
+
+
+def _nominal():
+    return jax.tree.map(lambda a: jnp.asarray(a, jnp.float32), harv())
+
+
+SCALE = jnp.array([1 / 500.0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1])
+N_STEPS = 600
+
+
+def _weights(seed: int = 0):
+    return jax.random.normal(jax.random.key(seed), (11, 3)) * 0.5
+
+
+def _linear_policy(seed: int = 0):
+    """A fixed random 'policy': tanh of a linear map of the scaled observation, actions in (-1, 1)."""
+    w = _weights(seed)
+    return lambda obs: jnp.tanh((obs * SCALE) @ w)
+
+
+def _gains(deadline_s=1e9, tube_rad=(10.0, 10.0, 10.0), box_high=None):
+    g = default_hybrid_gains(jnp.float32)
+    sx = g.simplex.replace(deadline_s=jnp.float32(deadline_s), tube_rad=jnp.asarray(tube_rad, jnp.float32))
+    if box_high is not None:
+        sx = sx.replace(box_high=jnp.asarray(box_high, jnp.float32))
+    return g.replace(simplex=sx)
+
+
+@functools.partial(jax.jit, static_argnums=(0, 1), compiler_options=FAST_COMPILE)
+def _fly(ctrl, n_steps, params, x0, delta0=None):
+    return closed_loop(ctrl, params, x0, REF, jax.random.key(0), n_steps, delta0_rad=delta0)
+
+
+@functools.partial(jax.jit, compiler_options=FAST_COMPILE)
+def _fly_simplex(w, gains, params, x0, delta0):
+    """The simplex hybrid with the linear policy of weights ``w`` (NaN weights: a non-finite policy) and
+    ``gains``, both traced: one compilation serves every test."""
+    hy = make_hybrid(lambda obs: jnp.tanh((obs * SCALE) @ w), SIMPLEX, gains)
+    return closed_loop(hy, params, x0, REF, jax.random.key(0), N_STEPS, delta0_rad=delta0)
+
+
+def _reason(info) -> np.ndarray:
+    """Per step: 0 none, else the index in SIMPLEX_REASONS of the hand-over so far."""
+    flags = np.stack([np.asarray(info[f"handover_{r}"]) for r in SIMPLEX_REASONS[1:]], axis=-1)
+    assert np.all(flags.sum(-1) <= 1)
+    return np.where(flags.any(-1), flags.argmax(-1) + 1, 0)
+
+
+def test_before_any_hand_over_the_policy_flies_alone():
+    params = _nominal()
+    r_h = _fly_simplex(_weights(2), _gains(), params, X0, SPIN_DELTA0)
+    r_r = _fly(make_rl_controller(_linear_policy(2)), N_STEPS, params, X0, SPIN_DELTA0)
+    assert float(jnp.max(r_h.traj.info["zeta"])) == 0.0
+    info = r_h.traj.info  # the policy's command acts as it is, except where the actuator box clips it
+    assert bool(jnp.all(info["policy_unmodified"] | jnp.any(info["limit_active"], axis=-1)))
+    assert float(jnp.mean(info["policy_unmodified"])) > 0.5
+    assert np.all(_reason(r_h.traj.info) == 0)
+    np.testing.assert_allclose(r_h.traj.delta_rad, r_r.traj.delta_rad, atol=1e-6)
+    np.testing.assert_allclose(r_h.traj.x_wind[:, 1:9], r_r.traj.x_wind[:, 1:9], atol=1e-5)
+
+
+def test_hand_over_at_engagement_flies_the_smc():
+    """Tube 0 and deadline 0: the SMC from the first step, u_RL dropped (equal to the SMC flown alone)."""
+    params = _nominal()
+    r_h = _fly_simplex(_weights(1), _gains(deadline_s=0.0, tube_rad=(0.0, 0.0, 0.0)), params, X0, SPIN_DELTA0)
+    r_s = _fly(SMC, N_STEPS, params, X0, SPIN_DELTA0)
+    assert np.all(_reason(r_h.traj.info) == SIMPLEX_REASONS.index("deadline"))
+    assert float(jnp.max(jnp.abs(r_h.traj.info["u_rl_rad"]))) == 0.0
+    np.testing.assert_allclose(r_h.traj.delta_rad, r_s.traj.delta_rad, atol=1e-5)
+    np.testing.assert_allclose(r_h.traj.x_wind[:, 1:9], r_s.traj.x_wind[:, 1:9], atol=1e-5)
+
+
+def test_deadline_hands_over_for_good_and_the_rest_is_the_smc_from_there():
+    params = _nominal()
+    k = 200  # deadline 2 s with a tube no state meets: the hand-over is at step 200 exactly
+    gains = _gains(deadline_s=k * DT, tube_rad=(1e-6, 1e-6, 1e-6))
+    r_h = _fly_simplex(_weights(3), gains, params, X0, SPIN_DELTA0)
+    zeta = np.asarray(r_h.traj.info["zeta"])
+    assert np.all(zeta[:k] == 0.0) and np.all(zeta[k:] == 1.0)
+    reason = _reason(r_h.traj.info)
+    assert np.all(reason[:k] == 0) and np.all(reason[k:] == SIMPLEX_REASONS.index("deadline"))
+    # from the hand-over on, the SMC started at that state and deflection (integral 0)
+    x_k, d_k = r_h.traj.x_wind[k], r_h.traj.delta_rad[k - 1]
+    r_s = _fly(SMC, N_STEPS, params, x_k, d_k)
+    n = N_STEPS - k
+    np.testing.assert_allclose(r_h.traj.delta_rad[k:], r_s.traj.delta_rad[:n], atol=1e-4)
+    np.testing.assert_allclose(r_h.traj.x_wind[k:, 1:9], r_s.traj.x_wind[:n, 1:9], atol=1e-4)
+
+
+def test_box_and_nonfinite_commands_hand_over_with_their_reason():
+    params = _nominal()
+    low_alpha = np.asarray(default_hybrid_gains().simplex.box_high).copy()
+    low_alpha[1] = 0.5  # X0 has alpha 0.6: outside at once
+    r_box = _fly_simplex(_weights(0), _gains(box_high=low_alpha), params, X0, jnp.zeros(3))
+    assert np.all(_reason(r_box.traj.info) == SIMPLEX_REASONS.index("box"))
+    r_nan = _fly_simplex(jnp.full((11, 3), jnp.nan), _gains(), params, X0, jnp.zeros(3))
+    assert np.all(_reason(r_nan.traj.info) == SIMPLEX_REASONS.index("nonfinite"))
+    assert bool(jnp.all(jnp.isfinite(r_nan.traj.delta_rad))) and not bool(r_nan.nonfinite)
+
+
+def test_simplex_step_by_hand():
+    g = _gains(deadline_s=0.05, tube_rad=(0.1, 0.1, 0.1)).simplex
+    s, t = simplex_init(jnp.float32), jnp.asarray(True)
+    inside, outside = jnp.array([0.05, 0.0, -0.05]), jnp.array([0.05, 0.2, 0.0])
+    for _ in range(5):  # before the deadline, outside the tube is allowed
+        s = simplex_step(s, jnp.asarray(False), outside, t, g, DT)
+    assert not bool(s.latched)
+    s = simplex_step(s, jnp.asarray(False), inside, t, g, DT)  # at the deadline, inside: still the policy
+    assert not bool(s.latched)
+    s = simplex_step(s, jnp.asarray(False), outside, t, g, DT)
+    assert bool(s.latched) and int(s.reason) == SIMPLEX_REASONS.index("deadline")
+    s = simplex_step(
+        s, jnp.asarray(True), inside, jnp.asarray(False), g, DT
+    )  # latched for good, first reason kept
+    assert bool(s.latched) and int(s.reason) == SIMPLEX_REASONS.index("deadline")
+    nan_err = simplex_step(simplex_init(jnp.float32), jnp.asarray(False), jnp.full((3,), jnp.nan), t, g, DT)
+    assert not bool(nan_err.latched)  # before the deadline a non-finite error alone does not trip
+
+
+@chex.assert_max_traces(n=1)
+def _apply_simplex_batch(hy, params, x, state):
+    return jax.vmap(hy.apply, in_axes=(0, 0, None, None))(state, x, REF, jax.random.key(0))
+
+
+def test_vmaps_over_aircraft_equal_to_single_runs_with_one_trace():
+    hy = make_hybrid(_linear_policy(4), SIMPLEX)
+    n = 6
+    base = _nominal()
+    params = jax.vmap(lambda s: base.replace(mass_slug=base.mass_slug * s))(jnp.linspace(0.9, 1.1, n))
+    xs = sample_table_states(jax.random.key(4), n)
+    state = jax.vmap(hy.init)(params)
+    f = jax.jit(_apply_simplex_batch, static_argnums=0)
+    u, state2, _ = f(hy, params, xs, state)
+    f(hy, params, xs, state2)  # second call: no retrace
+    for i in range(n):
+        p_i = jax.tree.map(lambda a, i=i: a[i], params)
+        u_i, _, _ = jax.jit(hy.apply)(hy.init(p_i), xs[i], REF, jax.random.key(0))
+        np.testing.assert_allclose(u[i], u_i, rtol=1e-5, atol=1e-6)
+
+
+def test_simplex_summary_counts_runs_by_reason():
+    from harv_jax.evaluation.monte_carlo import simplex_summary
+
+    info = {  # time means per run of the hand-over flags: run 0 box, run 2 deadline, runs 1 and 3 none
+        "handover_box": np.array([0.9, 0.0, 0.0, 0.0]),
+        "handover_deadline": np.array([0.0, 0.0, 0.2, 0.0]),
+        "handover_nonfinite": np.zeros(4),
+    }
+    s = simplex_summary(info)["handover_run_fraction"]
+    assert s == {"any": 0.5, "box": 0.25, "deadline": 0.25, "nonfinite": 0.0}
+    assert simplex_summary({"zeta": np.zeros(4)}) == {}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["bang-bang"])
+def test_mc_cli_reports_the_hand_overs(tmp_path, kind):
+    import json
+
+    from policy_fixtures import write_fixture_policies
+    from typer.testing import CliRunner
+
+    from harv_jax.cli import app
+
+    pol = write_fixture_policies(tmp_path)[kind]
+    out = tmp_path / "mc"
+    args = ["mc", "--controller", "hybrid", "--zeta", "simplex", "--policy", str(pol), "--runs", "2",
+            "--duration", "1", "--chunk", "2", "--out", str(out)]  # fmt: skip
+    r = CliRunner().invoke(app, args, standalone_mode=False)
+    assert r.exception is None, r.output
+    s = json.loads((out / "summary.json").read_text())
+    assert s["zeta_schedule"] == "simplex"
+    h = s["controllers"]["hybrid"]["hybrid"]["handover_run_fraction"]
+    assert set(h) == {"any", "box", "deadline", "nonfinite"}
+    assert all(0.0 <= v <= 1.0 for v in h.values()) and h["any"] >= max(h["box"], h["deadline"])
