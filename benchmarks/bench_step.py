@@ -34,7 +34,12 @@ from harv_jax.policies import DEFAULT_POLICY_SPEC  # noqa: E402
 
 DT_S = 0.01
 #: The issue's targets: SMC step <= 4 x plant step, hybrid step <= 1.3 x SMC step.
-TARGETS = {"smc_over_plant": 4.0, "hybrid_over_smc": 1.3, "hybrid_gated_over_smc": 1.3}
+TARGETS = {
+    "smc_over_plant": 4.0,
+    "hybrid_over_smc": 1.3,
+    "hybrid_gated_over_smc": 1.3,
+    "hybrid_simplex_over_smc": 1.3,
+}
 
 
 def build(batch: int, n_steps: int, policy: str | None, seed: int, gated: bool = False) -> dict:
@@ -89,8 +94,10 @@ def build(batch: int, n_steps: int, policy: str | None, seed: int, gated: bool =
     out = {}
     variants = {"plant": (plant_step, 2, (body0, delta0, hold, params))}
     controllers = {"smc": ("smc", "continuous"), "hybrid": ("hybrid", "continuous")}
-    if gated:  # the certificate-gated schedule (issue 17); not in the pre-issue-18 reference
+    if gated:  # issue 17's schedules and the policy alone; not in the pre-issue-18 reference
         controllers["hybrid_gated"] = ("hybrid", "gated")
+        controllers["hybrid_simplex"] = ("hybrid", "simplex")
+        controllers["rl"] = ("rl", "continuous")
     for name, (kind, zeta) in controllers.items():
         ctrl = build_controller(kind, ControllerOptions(policy=policy, zeta=zeta))
         cstate0 = jax.vmap(ctrl.init)(params)
@@ -170,8 +177,9 @@ def main(argv: list[str] | None = None) -> dict:
             "smc_over_plant": us["smc"] / us["plant"],
             "hybrid_over_smc": us["hybrid"] / us["smc"],
         }
-        if "hybrid_gated" in us:
-            rows[s]["ratios"]["hybrid_gated_over_smc"] = us["hybrid_gated"] / us["smc"]
+        for k in ("hybrid_gated", "hybrid_simplex", "rl"):
+            if k in us:
+                rows[s]["ratios"][f"{k}_over_smc"] = us[k] / us["smc"]
         print(
             f"{s:>9}: plant {us['plant']:.0f} us/step, smc {us['smc']:.0f}, hybrid {us['hybrid']:.0f} "
             f"(batch {args.batch}): smc/plant {us['smc'] / us['plant']:.2f}, hybrid/smc "
@@ -185,8 +193,9 @@ def main(argv: list[str] | None = None) -> dict:
             k: ref[k]["us_per_step"] / cur[k]["us_per_step"] for k in ("plant", "smc", "hybrid")
         }
         print(f"speed-up over the reference: {rows['speedup_over_reference']}", flush=True)
-    if "hybrid_gated_over_smc" in rows["current"]["ratios"]:
-        print(f"gated hybrid / smc: {rows['current']['ratios']['hybrid_gated_over_smc']:.2f}", flush=True)
+    for k in ("hybrid_gated", "hybrid_simplex", "rl"):
+        if f"{k}_over_smc" in rows["current"]["ratios"]:
+            print(f"{k} / smc: {rows['current']['ratios'][f'{k}_over_smc']:.2f}", flush=True)
     ratios = rows["current"]["ratios"]
     result = {
         "benchmark": "step",

@@ -11,8 +11,8 @@ Plain ``.npz`` layout (``np.load(path, allow_pickle=False)``), for use outside P
 ``meta["normalize_observations"]`` is false); actor layers ``policy/hidden_<i>/kernel [in, out]``,
 ``policy/hidden_<i>/bias [out]`` with ``h = tanh(h @ kernel + bias)``, then ``mean = h @ policy/out/kernel +
 policy/out/bias``; ``policy/log_std [A]``; critic likewise under ``value/``; ``meta`` a JSON string (sizes,
-config, seed). Deterministic action: ``clip(mean, -1, 1)``; stochastic: ``clip(mean + exp(log_std) * N(0,
-1), -1, 1)``.
+config, seed, ``obs_count``). Deterministic action: ``clip(mean, -1, 1)``; stochastic: ``clip(mean +
+exp(log_std) * N(0, 1), -1, 1)``.
 
 ``export_stablehlo`` writes the deterministic policy with ``jax.export`` (serialized StableHLO, symbolic
 batch size, weights baked in); :func:`load_exported` reads it back without the model code.
@@ -130,6 +130,7 @@ def export_npz(path: str | Path, policy: Policy) -> Path:
         "action_size": policy.networks.action_size,
         "hidden_sizes": list(policy.networks.actor.hidden_sizes),
         "normalize_observations": normalized,
+        "obs_count": float(policy.normalizer.count) if normalized else 0.0,
     }
     arrays["meta"] = np.asarray(json.dumps(meta))
     tmp = path.with_name(path.name + ".tmp.npz")
@@ -209,6 +210,17 @@ def _check_array(name: str, key: str, x: np.ndarray, shape: tuple[int, ...]) -> 
     return x
 
 
+ASSUMED_OBS_COUNT = 1.0e6  # for a file without meta["obs_count"] (written before it was stored)
+
+
+def _obs_count(name: str, meta: dict[str, Any]) -> float:
+    """The normalizer's observation count of a policy file (at least 1); UsageError unless finite, >= 0."""
+    count = meta.get("obs_count", ASSUMED_OBS_COUNT)
+    if isinstance(count, bool) or not isinstance(count, int | float) or not np.isfinite(count) or count < 0:
+        raise UsageError(f"{name!r}: meta obs_count={count!r}; allowed: a finite number >= 0")
+    return max(float(count), 1.0)
+
+
 def _load_npz(path: Path) -> Policy:
     name = str(path)
     arrays = _read_npz_arrays(path)
@@ -235,11 +247,13 @@ def _load_npz(path: Path) -> Policy:
     if meta["normalize_observations"] and not np.all(arrays["obs_std"] > 0):
         raise UsageError(f"{name!r}: obs_std must be > 0 everywhere")
     params = PPOParams(heads["policy"], heads["value"])
-    # The npz stores (mean, std); rebuild statistics with exactly that std (count 1, m2 = std^2 - eps).
+    # (mean, std) weighted by the stored count: a fine-tune (``train --init-policy``) updates the statistics
+    # instead of replacing them with its first batch
+    count = _obs_count(name, meta)
     std = np.asarray(arrays["obs_std"], np.float64)
-    m2 = np.maximum(std**2 - obs_norm.VAR_EPS, 0.0)
+    m2 = np.maximum(std**2 - obs_norm.VAR_EPS, 0.0) * count
     normalizer = obs_norm.RunningStats(
-        count=jnp.ones((), jnp.float32),
+        count=jnp.asarray(count, jnp.float32),
         mean=jnp.asarray(arrays["obs_mean"], jnp.float32),
         m2=jnp.asarray(m2, jnp.float32),
     )

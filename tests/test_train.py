@@ -244,6 +244,26 @@ def test_stagger_episodes_spreads_first_episodes():
         make_train(NoTimeLimit(), cfg.replace(stagger_episodes=True), TOY_PARAMS)
 
 
+def _check_obs_count_in_meta(path, policy_api):
+    """A file without meta["obs_count"] (older files) loads with ASSUMED_OBS_COUNT; a bad one is refused."""
+    import json
+
+    with np.load(path, allow_pickle=False) as z:
+        arrays = dict(z)
+    meta = json.loads(str(arrays["meta"]))
+    for count, ok in ((None, True), (-1.0, False), ("many", False)):
+        m = {k: v for k, v in meta.items() if k != "obs_count"} | (
+            {} if count is None else {"obs_count": count}
+        )
+        np.savez(path.with_name("c.npz"), **(arrays | {"meta": np.asarray(json.dumps(m))}))
+        if ok:
+            got = policy_api.load(path.with_name("c.npz")).normalizer.count
+            assert float(got) == policy_api.ASSUMED_OBS_COUNT
+        else:
+            with pytest.raises(UsageError, match="obs_count"):
+                policy_api.load(path.with_name("c.npz"))
+
+
 def test_policy_export_roundtrip(trainer, full_run, tmp_path):
     from harv_jax import policy as policy_api
 
@@ -257,6 +277,10 @@ def test_policy_export_roundtrip(trainer, full_run, tmp_path):
     assert float(jnp.max(jnp.abs(want))) <= 1.0
     from_npz = policy_api.load(policy_api.export_npz(tmp_path / "p.npz", pol))
     np.testing.assert_allclose(from_npz.deterministic(obs), want, rtol=1e-5, atol=1e-6)
+    # the statistics come back with their count (a fine-tune updates them instead of replacing them)
+    for name in ("count", "mean", "m2"):
+        np.testing.assert_allclose(getattr(from_npz.normalizer, name), getattr(normalizer, name), rtol=1e-5)
+    _check_obs_count_in_meta(tmp_path / "p.npz", policy_api)
     if policy_api.export_available():  # jax.export serialization needs flatbuffers
         exported = policy_api.load_exported(policy_api.export_stablehlo(tmp_path / "p.stablehlo", pol))
         np.testing.assert_allclose(exported(obs), want, rtol=1e-5, atol=1e-6)
