@@ -37,8 +37,19 @@ DT_S = 0.01
 TARGETS = {"smc_over_plant": 4.0, "hybrid_over_smc": 1.3, "hybrid_gated_over_smc": 1.3}
 
 
-def build(batch: int, n_steps: int, policy: str | None, seed: int, gated: bool = False) -> dict:
-    """Compiled plant / smc / hybrid step loops with their arguments, compile times and per-step costs."""
+def build(
+    batch: int,
+    n_steps: int,
+    policy: str | None,
+    seed: int,
+    gated: bool = False,
+    controllers: tuple[str, ...] = ("smc", "hybrid"),
+) -> dict:
+    """Compiled plant / smc / hybrid step loops with their arguments, compile times and per-step costs.
+
+    ``controllers``: the continuous-schedule controllers to build (``smc``, ``hybrid``); ``gated`` adds
+    ``hybrid_gated``.
+    """
     import jax
     import jax.numpy as jnp
 
@@ -88,10 +99,10 @@ def build(batch: int, n_steps: int, policy: str | None, seed: int, gated: bool =
 
     out = {}
     variants = {"plant": (plant_step, 2, (body0, delta0, hold, params))}
-    controllers = {"smc": ("smc", "continuous"), "hybrid": ("hybrid", "continuous")}
+    kinds = {name: (name, "continuous") for name in controllers}
     if gated:  # the certificate-gated schedule (issue 17); not in the pre-issue-18 reference
-        controllers["hybrid_gated"] = ("hybrid", "gated")
-    for name, (kind, zeta) in controllers.items():
+        kinds["hybrid_gated"] = ("hybrid", "gated")
+    for name, (kind, zeta) in kinds.items():
         ctrl = build_controller(kind, ControllerOptions(policy=policy, zeta=zeta))
         cstate0 = jax.vmap(ctrl.init)(params)
         variants[name] = (closed_step(ctrl), 3, (body0, delta0, cstate0, params))
