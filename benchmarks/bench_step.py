@@ -42,8 +42,19 @@ TARGETS = {
 }
 
 
-def build(batch: int, n_steps: int, policy: str | None, seed: int, gated: bool = False) -> dict:
-    """Compiled plant / smc / hybrid step loops with their arguments, compile times and per-step costs."""
+def build(
+    batch: int,
+    n_steps: int,
+    policy: str | None,
+    seed: int,
+    gated: bool = False,
+    controllers: tuple[str, ...] = ("smc", "hybrid"),
+) -> dict:
+    """Compiled plant / smc / hybrid step loops with their arguments, compile times and per-step costs.
+
+    ``controllers``: the continuous-schedule controllers to build (``smc``, ``hybrid``); ``gated`` adds
+    ``hybrid_gated``, ``hybrid_simplex`` and ``rl`` (the policy alone).
+    """
     import jax
     import jax.numpy as jnp
 
@@ -93,12 +104,12 @@ def build(batch: int, n_steps: int, policy: str | None, seed: int, gated: bool =
 
     out = {}
     variants = {"plant": (plant_step, 2, (body0, delta0, hold, params))}
-    controllers = {"smc": ("smc", "continuous"), "hybrid": ("hybrid", "continuous")}
+    kinds = {name: (name, "continuous") for name in controllers}
     if gated:  # issue 17's schedules and the policy alone; not in the pre-issue-18 reference
-        controllers["hybrid_gated"] = ("hybrid", "gated")
-        controllers["hybrid_simplex"] = ("hybrid", "simplex")
-        controllers["rl"] = ("rl", "continuous")
-    for name, (kind, zeta) in controllers.items():
+        kinds["hybrid_gated"] = ("hybrid", "gated")
+        kinds["hybrid_simplex"] = ("hybrid", "simplex")
+        kinds["rl"] = ("rl", "continuous")
+    for name, (kind, zeta) in kinds.items():
         ctrl = build_controller(kind, ControllerOptions(policy=policy, zeta=zeta))
         cstate0 = jax.vmap(ctrl.init)(params)
         variants[name] = (closed_step(ctrl), 3, (body0, delta0, cstate0, params))

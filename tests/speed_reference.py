@@ -69,6 +69,7 @@ def coefficients_reference(
     u_rad: jnp.ndarray,
     params: AircraftParams,
     control_forces: bool = True,
+    alpha_in_range: bool = False,  # (accepted for the current callers; the reference always wraps)
 ) -> AeroCoeffs:
     """Aerodynamic coefficients at one flight condition.
 
@@ -201,6 +202,7 @@ def forces_moments_reference(
     u_rad: jnp.ndarray,
     params: AircraftParams,
     control_forces: bool = True,
+    alpha_in_range: bool = False,  # (accepted for the current callers; the reference always wraps)
 ) -> ForcesMoments:
     """Aerodynamic forces and moments plus thrust at one flight condition."""
     rho = density_slugft3_reference(h_ft)

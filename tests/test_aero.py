@@ -128,6 +128,33 @@ def test_lookup_gradient_matches_finite_differences(x64):
     np.testing.assert_array_equal(g_out, 0.0)
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_lookup_in_range_equals_the_wrapped_lookup(dtype):
+    """``in_range=True`` (no wrap, for an arctan2's alpha) gives the wrapped lookup's row and slope on
+    [-pi, pi], -pi included (the wrap maps it to +pi: the 90-deg end of the table, not the -14-deg one)."""
+    with jax.enable_x64(dtype == np.float64):
+        rng = np.random.default_rng(3)
+        a = np.concatenate([
+            GRID_DEG * RAD, rng.uniform(-np.pi, np.pi, 200), [-np.pi, np.pi, -np.pi / 2, 3.0, -3.0, 0.0],
+            np.arctan2(np.array([-0.0, 0.0, -1e-30]), -1.0),
+        ]).astype(dtype)  # fmt: skip
+        scale = jnp.asarray(rng.uniform(0.9, 1.1, 33), dtype)
+        wrapped = jax.jit(jax.vmap(lambda x: lookup(x, scale)))(jnp.asarray(a))
+        direct = jax.jit(jax.vmap(lambda x: lookup(x, scale, in_range=True)))(jnp.asarray(a))
+        tol = 1e-12 if dtype == np.float64 else 2e-5
+        np.testing.assert_allclose(direct, wrapped, rtol=tol, atol=tol * np.max(np.abs(PER_RAD)))
+        at_minus_pi = direct[len(GRID_DEG) + 200]
+        np.testing.assert_allclose(at_minus_pi, PER_RAD[-1] * np.asarray(scale), rtol=tol)  # the 90-deg row
+        # slopes away from the breakpoints (at a kink a 1-ulp rounding of the wrap picks the other side)
+        off = np.min(np.abs(np.degrees(a.astype(np.float64))[:, None] - GRID_DEG[None, :]), axis=1) > 1e-3
+        a_off = jnp.asarray(a[off])
+        grads = [
+            jax.jit(jax.vmap(jax.jacfwd(lambda x, r=r: lookup(x, scale, in_range=r))))(a_off)
+            for r in (True, False)
+        ]
+        np.testing.assert_allclose(grads[0], grads[1], rtol=tol, atol=tol * np.max(np.abs(PER_RAD)))
+
+
 def test_derivatives_are_differentiable(x64):
     """jax.jacfwd of the wind-axis derivatives is finite and matches central differences."""
     from harv_jax.dynamics import derivatives

@@ -35,18 +35,40 @@ def wrap_angle_rad(a: jnp.ndarray) -> jnp.ndarray:
     return jnp.pi - jnp.mod(jnp.pi - a, 2.0 * jnp.pi)
 
 
-def lookup(alpha_rad: jnp.ndarray, aero_scale: jnp.ndarray | None = None) -> jnp.ndarray:
+def segment(alpha_rad: jnp.ndarray, in_range: bool = False) -> tuple[jnp.ndarray, jnp.ndarray]:
+    """(segment index as a float in 0..25, fraction in the segment) of alpha on the table grid.
+
+    Args:
+        alpha_rad: angle of attack, rad; wrapped to (-pi, pi], clamped to [-14, 90] deg.
+        in_range: as in ``lookup``.
+    """
+    if in_range:
+        a_deg = jnp.clip(alpha_rad * DEG_PER_RAD, data.ALPHA_MIN_DEG, data.ALPHA_MAX_DEG)
+        a_deg = jnp.where(alpha_rad <= -jnp.pi, data.ALPHA_MAX_DEG, a_deg)
+    else:
+        a_deg = jnp.clip(wrap_angle_rad(alpha_rad) * DEG_PER_RAD, data.ALPHA_MIN_DEG, data.ALPHA_MAX_DEG)
+    pos = (a_deg - data.ALPHA_MIN_DEG) / data.ALPHA_STEP_DEG
+    idx = jnp.clip(jnp.floor(pos), 0, _N_SEGMENTS - 1)
+    return idx, pos - idx
+
+
+def lookup(
+    alpha_rad: jnp.ndarray, aero_scale: jnp.ndarray | None = None, in_range: bool = False
+) -> jnp.ndarray:
     """Interpolated table row (per-radian derivatives), shape [33] in ``AERO_COLUMNS`` order.
+
+    The two rows are a gather; gather-free forms (tent weights times the table, a chain of selects) were
+    slower on the CPU, side by side in the plant and SMC steps (``benchmarks/bench_lookup.py``).
 
     Args:
         alpha_rad: angle of attack, rad (scalar); wrapped to (-pi, pi], clamped to [-14, 90] deg.
         aero_scale: optional [33] per-column multipliers.
+        in_range: ``alpha_rad`` is known to lie in [-pi, pi] (an ``arctan2``): the wrap (a ``mod``) is
+            skipped and -pi is taken as +pi, as the wrap maps it (same row up to the wrap's rounding).
     """
     table = jnp.asarray(data.AERO_TABLE_PER_RAD, dtype=jnp.result_type(alpha_rad, float))
-    a_deg = jnp.clip(wrap_angle_rad(alpha_rad) * DEG_PER_RAD, data.ALPHA_MIN_DEG, data.ALPHA_MAX_DEG)
-    pos = (a_deg - data.ALPHA_MIN_DEG) / data.ALPHA_STEP_DEG
-    idx = jnp.clip(jnp.floor(pos), 0, _N_SEGMENTS - 1).astype(jnp.int32)
-    frac = pos - idx
+    idx, frac = segment(alpha_rad, in_range)
+    idx = idx.astype(jnp.int32)
     row = table[idx] * (1.0 - frac) + table[idx + 1] * frac
     if aero_scale is not None:
         row = row * aero_scale
@@ -61,6 +83,7 @@ def coefficients(
     u_rad: jnp.ndarray,
     params: AircraftParams,
     control_forces: bool = True,
+    alpha_in_range: bool = False,
 ) -> AeroCoeffs:
     """Aerodynamic coefficients at one flight condition.
 
@@ -72,8 +95,9 @@ def coefficients(
         params: aircraft parameters (geometry, aero_scale).
         control_forces: if False, drop the control-surface *force* terms (CL,de, CD,de, CY,d*):
             the SMC's controller model (relative degree 2). Moments always keep them.
+        alpha_in_range: ``alpha_rad`` lies in [-pi, pi] (``lookup``'s ``in_range``).
     """
-    c = lookup(alpha_rad, params.aero_scale)
+    c = lookup(alpha_rad, params.aero_scale, alpha_in_range)
     p, q, r = pqr_radps[0], pqr_radps[1], pqr_radps[2]
     de, da, dr = u_rad[0], u_rad[1], u_rad[2]
     ph = p * params.b / (2.0 * vt_fps)

@@ -51,14 +51,18 @@ def forces_moments(
     u_rad: jnp.ndarray,
     params: AircraftParams,
     control_forces: bool = True,
+    alpha_in_range: bool = False,
 ) -> ForcesMoments:
-    """Aerodynamic forces and moments plus thrust at one flight condition."""
+    """Aerodynamic forces and moments plus thrust at one flight condition.
+
+    ``alpha_in_range``: ``alpha_rad`` lies in [-pi, pi] (an ``arctan2``), so the table lookup skips the wrap.
+    """
     rho, lapse = density_and_thrust_lapse(h_ft)
     qbar = 0.5 * rho * vt_fps * vt_fps
     thrust = params.throttle * params.T_max * lapse
     c = coefficients(
         alpha_rad, beta_rad, pqr_radps, jnp.maximum(vt_fps, V_FLOOR_FPS), u_rad, params,
-        control_forces,
+        control_forces, alpha_in_range,
     )  # fmt: skip
     qs = qbar * params.S
     return ForcesMoments(
@@ -234,7 +238,7 @@ def body_derivatives(
     ca, sa = jnp.where(uw > 0, ua / uw_safe, 1.0), wa / uw_safe  # cos, sin alpha
     cb, sb = jnp.where(vt > 0, uw / vt_safe, 1.0), va / vt_safe  # cos, sin beta
     alpha, beta = jnp.arctan2(wa, ua), jnp.arctan2(va, uw)
-    fm = forces_moments(vt, alpha, beta, pqr, h, u, params)
+    fm = forces_moments(vt, alpha, beta, pqr, h, u, params, alpha_in_range=True)  # (an arctan2)
     m, g = params.mass_slug, params.g
     L, D, Y = fm.L, fm.D, fm.Y
     q0, q1, q2, q3 = quat[0], quat[1], quat[2], quat[3]
