@@ -1,5 +1,6 @@
-"""Our reward terms (smooth bands, dense per-channel terms, recovered bonus, action rate) by hand, the
-paper's reward kept bit for bit at the defaults, and the preset tables that set them."""
+"""Our reward terms (smooth bands, dense per-channel terms, recovered bonus, action rate, alpha weighting by
+speed, excess speed) by hand, the paper's reward kept bit for bit at the defaults, and the preset tables that
+set them."""
 
 from __future__ import annotations
 
@@ -62,7 +63,7 @@ def test_paper_reward_bit_for_bit():
     )
     ref = jax.jit(jax.vmap(lambda *z: _paper_total(*z, W)))(x, target, a, pot, term)
     assert np.asarray(ours).tobytes() == np.asarray(ref).tobytes()
-    for name in ("dense_alpha", "dense_beta", "dense_mu", "recovered", "action_rate"):
+    for name in ("dense_alpha", "dense_beta", "dense_mu", "recovered", "action_rate", "speed"):
         terms = jax.vmap(lambda *z: reward.reward_terms(*z[:5], W, z[5])[0])(x, target, a, pot, term, a_prev)
         assert np.all(np.asarray(getattr(terms, name)) == 0.0), name
 
@@ -117,10 +118,11 @@ def test_total_adds_our_terms():
     x, target, a, pot, term, a_prev = _random_steps(512, seed=1)
     w = W.replace(bonus_shape=jnp.asarray(1.0), bonus_width_rad=jnp.full((3,), 0.0873),
                   w_track=jnp.asarray([1.0, 2.0, 3.0]), recovered_bonus=jnp.asarray(5.0),
-                  action_rate_weight=jnp.asarray(0.3))  # fmt: skip
+                  action_rate_weight=jnp.asarray(0.3), speed_weight=jnp.asarray(2.0),
+                  alpha_v_lo_fps=jnp.asarray(450.0), alpha_v_hi_fps=jnp.asarray(600.0))  # fmt: skip
     t = jax.vmap(lambda *z: reward.reward_terms(*z[:5], w, z[5])[0])(x, target, a, pot, term, a_prev)
     perf = (t.raw + t.bonus_alpha + t.bonus_beta + t.bonus_mu + t.action + t.dense_alpha + t.dense_beta
-            + t.dense_mu + t.recovered + t.action_rate)  # fmt: skip
+            + t.dense_mu + t.recovered + t.action_rate + t.speed)  # fmt: skip
     expect = np.where(np.asarray(term), np.asarray(t.terminal), np.asarray(perf)) + np.asarray(t.shaping)
     np.testing.assert_allclose(t.total, expect, rtol=1e-5, atol=1e-4)
 
@@ -133,6 +135,12 @@ def test_total_adds_our_terms():
         ({"reward": {"bonus_shape": 2}}, "reward.bonus_shape = 2 is outside the allowed range [0, 1]"),
         ({"reward": {"recovered_bonus": float("nan")}}, "reward.recovered_bonus"),
         ({"reward": {"bogus": 1}}, "unknown [reward] setting 'bogus'"),
+        (
+            {"reward": {"speed_scale_fps": 0.0}},
+            "reward.speed_scale_fps = 0.0 is outside the allowed range [1, 10000]",
+        ),
+        ({"reward": {"speed_weight": -1.0}}, "reward.speed_weight = -1.0 is outside"),
+        ({"reward": {"alpha_v_hi_fps": 2e6}}, "reward.alpha_v_hi_fps = 2000000.0 is outside"),
         ({"spin": {"reset_prob": 1.5}}, "spin.reset_prob = 1.5 is outside the allowed range [0, 1]"),
         ({"spin": {"bank_size": 0}}, "spin.bank_size = 0 is outside"),
         ({"spin": {"spin_s_min": 20.0, "spin_s_max": 10.0}}, "spin.spin_s_max = 10.0 is outside"),
@@ -173,6 +181,40 @@ def test_mu_weight_by_hand():
     got = [float(reward.mu_weight(jnp.asarray(math.radians(g)), w)) for g in (30.0, -75.0, 52.5, -48.75)]
     np.testing.assert_allclose(got, [1.0, 0.0, 0.5, 0.84375], rtol=1e-5, atol=1e-6)
     assert float(reward.mu_weight(jnp.asarray(1.5), W)) == 1.0  # the paper's settings: no weighting
+
+
+def test_alpha_weight_by_hand():
+    # lo = 450, hi = 600 ft/s: V = 300 -> 1; 700 -> 0; 525 (t = 0.5) -> 0.5; 487.5 (t = 0.25) -> 0.84375
+    w = W.replace(alpha_v_lo_fps=jnp.asarray(450.0), alpha_v_hi_fps=jnp.asarray(600.0))
+    got = [float(reward.alpha_weight(jnp.asarray(v), w)) for v in (300.0, 700.0, 525.0, 487.5)]
+    np.testing.assert_allclose(got, [1.0, 0.0, 0.5, 0.84375], rtol=1e-5, atol=1e-6)
+    assert float(reward.alpha_weight(jnp.asarray(1500.0), W)) == 1.0  # the paper's settings: no weighting
+
+
+def test_speed_penalty_by_hand():
+    # w = 4, ref 450, scale 500 ft/s: V = 400 -> 0; 700 -> -4 * 250/500 = -2; 1200 -> -4 (clipped at 1)
+    w = W.replace(speed_weight=jnp.asarray(4.0), speed_ref_fps=jnp.asarray(450.0),
+                  speed_scale_fps=jnp.asarray(500.0))  # fmt: skip
+    got = [float(reward.speed_penalty(jnp.asarray(v), w)) for v in (400.0, 700.0, 1200.0)]
+    np.testing.assert_allclose(got, [0.0, -2.0, -4.0], rtol=1e-6)
+
+
+def test_alpha_terms_weighted_out_when_fast():
+    """At V = 700 ft/s with alpha_v_hi 600 the alpha bonus and dense term are 0; at 300 ft/s they are paid;
+    the speed term of a full step is the hand value."""
+    w = W.replace(bonus_shape=jnp.asarray(1.0), bonus_width_rad=jnp.full((3,), 0.0873),
+                  w_track=jnp.asarray([4.0, 3.0, 3.0]), alpha_v_lo_fps=jnp.asarray(450.0),
+                  alpha_v_hi_fps=jnp.asarray(600.0), speed_weight=jnp.asarray(4.0),
+                  speed_ref_fps=jnp.asarray(450.0), speed_scale_fps=jnp.asarray(500.0))  # fmt: skip
+    target = jnp.asarray([0.349, 0.0, 0.0])
+    a = jnp.zeros(3)
+    for v, paid in ((700.0, False), (300.0, True)):
+        x = jnp.zeros(10).at[0].set(v).at[1].set(0.349 + 0.25)  # e_alpha = 0.25 rad
+        t = reward.reward_terms(x, target, a, jnp.asarray(0.0), jnp.asarray(False), w)[0]
+        # dense_alpha = -4 * 0.25/0.5 = -2; bonus_alpha = 5 exp(-(0.25/0.0873)^2) = 5 * 2.74e-4 = 1.37e-3
+        np.testing.assert_allclose(float(t.dense_alpha), -2.0 if paid else 0.0, rtol=1e-5, atol=1e-7)
+        np.testing.assert_allclose(float(t.bonus_alpha), 1.37e-3 if paid else 0.0, rtol=1e-2, atol=1e-7)
+        np.testing.assert_allclose(float(t.speed), -4.0 * 250.0 / 500.0 if v == 700.0 else 0.0, rtol=1e-6)
 
 
 def test_cli_bad_reward_table_exit_2(monkeypatch, capsys, tmp_path):
