@@ -217,6 +217,32 @@ def test_alpha_terms_weighted_out_when_fast():
         np.testing.assert_allclose(float(t.speed), -4.0 * 250.0 / 500.0 if v == 700.0 else 0.0, rtol=1e-6)
 
 
+def test_alpha_brake_target_by_hand():
+    """alpha_brake_on: the alpha terms track w alpha_d + (1 - w) alpha_brake, w the speed weight; the
+    recovered term still uses the true alpha_d."""
+    w = W.replace(w_track=jnp.asarray([4.0, 3.0, 3.0]), alpha_v_lo_fps=jnp.asarray(450.0),
+                  alpha_v_hi_fps=jnp.asarray(600.0), alpha_brake_on=jnp.asarray(1.0),
+                  alpha_brake_rad=jnp.asarray(1.0), recovered_bonus=jnp.asarray(5.0))  # fmt: skip
+    target = jnp.asarray([0.349, 0.0, 0.0])
+    a = jnp.zeros(3)
+
+    def step(v, alpha):
+        x = jnp.zeros(10).at[0].set(v).at[1].set(alpha)
+        return reward.reward_terms(x, target, a, jnp.asarray(0.0), jnp.asarray(False), w)[0]
+
+    # V = 700 (w = 0): ref 1.0 rad; alpha 0.75 -> -4 * 0.25/0.5 = -2; alpha 1.0 -> 0 and bonus 5
+    np.testing.assert_allclose(float(step(700.0, 0.75).dense_alpha), -2.0, rtol=1e-5)
+    np.testing.assert_allclose(float(step(700.0, 1.0).dense_alpha), 0.0, atol=1e-6)
+    assert float(step(700.0, 1.0).bonus_alpha) == 5.0  # the paper's indicator: 5 [|e| < 0.017]
+    # V = 525 (w = 0.5): ref 0.5 * 0.349 + 0.5 * 1.0 = 0.6745; alpha 0.4245 -> -4 * 0.25/0.5 = -2
+    np.testing.assert_allclose(float(step(525.0, 0.4245).dense_alpha), -2.0, rtol=1e-4)
+    # V = 300 (w = 1): ref alpha_d; at alpha_d the recovered term is paid (omega 0, beta = mu = 0)
+    t = step(300.0, 0.349)
+    np.testing.assert_allclose(float(t.dense_alpha), 0.0, atol=1e-6)
+    assert float(t.recovered) == 5.0
+    assert float(step(700.0, 1.0).recovered) == 0.0  # on the braking ref but 37 deg off alpha_d
+
+
 def test_cli_bad_reward_table_exit_2(monkeypatch, capsys, tmp_path):
     """A [spin] mix out of range in a preset: one line naming the key and the range, exit 2, no run folder."""
     from cli_util import cli_run

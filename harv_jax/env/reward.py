@@ -30,7 +30,8 @@ paper's bit for bit, ``tests/test_reward.py``):
     w_mu(gamma) = 1 - smoothstep((|gamma| - mu_gamma_lo) / (mu_gamma_hi - mu_gamma_lo)) multiplies the mu
                   bonus and dense_mu (paper: 1 at every gamma)
     w_alpha(V)  = 1 - smoothstep((V - alpha_v_lo) / (alpha_v_hi - alpha_v_lo)) multiplies the alpha bonus and
-                  dense_alpha (paper: 1 at every V)
+                  dense_alpha (paper: 1 at every V); with alpha_brake_on = 1 instead the alpha bonus and
+                  dense_alpha are paid on alpha - (w_alpha alpha_d + (1 - w_alpha) alpha_brake)
     speed       = -speed_weight clip((V - speed_ref) / speed_scale, 0, 1)   (excess speed, ft/s)
     reward      = paper reward + dense + recovered + action_rate + speed   (non-terminal step)
     reward   = terminal_reward + (Gamma * 0 - sigma_t)                 (terminating step)
@@ -223,8 +224,12 @@ def reward_terms(
     r_raw = params.raw_weight * ((1.0 - eps) * r1 + eps * r2)  # raw_weight 1 (paper): x * 1.0 == x
     w_mu = mu_weight(gamma_rad(x_wind), params)  # exactly 1 at the paper's settings: x * 1.0 == x
     w_alpha = alpha_weight(vt_fps(x_wind), params)  # exactly 1 at the paper's settings
+    brake = params.alpha_brake_on > 0.5  # off (paper): the errors and weights are taken as they are
+    shift = (1.0 - w_alpha) * (target_rad[0] - params.alpha_brake_rad)
+    track_errors = jnp.where(brake, errors.at[0].add(shift), errors)
+    w_alpha = jnp.where(brake, jnp.ones_like(w_alpha), w_alpha)
     channel_w = jnp.stack([w_alpha, jnp.ones_like(w_mu), w_mu])
-    bonus = bonuses(errors, params) * channel_w
+    bonus = bonuses(track_errors, params) * channel_w
     r_action = action_penalty(action, params)
     pot_next = potential(e_alpha, pqr, params)
     pot_target = jnp.where(terminated, jnp.zeros_like(pot_next), pot_next)
@@ -234,7 +239,7 @@ def reward_terms(
     def paid(v):
         return jnp.where(terminated, zero, v)
 
-    dense = dense_tracking(errors, params) * channel_w
+    dense = dense_tracking(track_errors, params) * channel_w
     r_recovered = recovered_term(errors, pqr, params)
     r_rate = action_rate_penalty(action, action if action_prev is None else action_prev, params)
     r_speed = speed_penalty(vt_fps(x_wind), params)
