@@ -256,3 +256,29 @@ def test_cli_bad_reward_table_exit_2(monkeypatch, capsys, tmp_path):
     assert code == 2
     assert err.strip() == "harv-jax: error: spin.reset_prob = 1.5 is outside the allowed range [0, 1]"
     assert not (tmp_path / "run").exists()
+
+
+def test_fast_preset_is_recovery_plus_braking():
+    """The fast preset is the recovery preset with energy braking in the reward and nothing else (so the
+    experiments/fast_policy ablation is a reward ablation); its tables build valid traced params."""
+    from harv_jax.training.presets import load_preset
+
+    ppo_f, env_f = load_preset("fast")
+    ppo_r, env_r = load_preset("recovery")
+    assert ppo_f == ppo_r
+    assert {k: v for k, v in env_f.items() if k != "reward"} == {
+        k: v for k, v in env_r.items() if k != "reward"
+    }
+    changed = {
+        k for k in env_f["reward"] | env_r["reward"] if env_f["reward"].get(k) != env_r["reward"].get(k)
+    }
+    assert changed == {
+        "track_clip_rad",
+        "alpha_brake_on",
+        "alpha_brake_rad",
+        "alpha_v_lo_fps",
+        "alpha_v_hi_fps",
+    }
+    flat, nested = settings.split_tables(env_f)
+    p = settings.env_params(settings.env_config(flat), {**nested, "spin": {}})
+    assert float(p.reward.alpha_brake_on) == 1.0 and float(p.reward.alpha_v_hi_fps) == 550.0
