@@ -1,5 +1,6 @@
-"""Our reward terms (smooth bands, dense per-channel terms, recovered bonus, action rate) by hand, the
-paper's reward kept bit for bit at the defaults, and the preset tables that set them."""
+"""Our reward terms (smooth bands, dense per-channel terms, recovered bonus, action rate, alpha weighting by
+speed, excess speed) by hand, the paper's reward kept bit for bit at the defaults, and the preset tables that
+set them."""
 
 from __future__ import annotations
 
@@ -62,7 +63,7 @@ def test_paper_reward_bit_for_bit():
     )
     ref = jax.jit(jax.vmap(lambda *z: _paper_total(*z, W)))(x, target, a, pot, term)
     assert np.asarray(ours).tobytes() == np.asarray(ref).tobytes()
-    for name in ("dense_alpha", "dense_beta", "dense_mu", "recovered", "action_rate"):
+    for name in ("dense_alpha", "dense_beta", "dense_mu", "recovered", "action_rate", "speed"):
         terms = jax.vmap(lambda *z: reward.reward_terms(*z[:5], W, z[5])[0])(x, target, a, pot, term, a_prev)
         assert np.all(np.asarray(getattr(terms, name)) == 0.0), name
 
@@ -117,10 +118,11 @@ def test_total_adds_our_terms():
     x, target, a, pot, term, a_prev = _random_steps(512, seed=1)
     w = W.replace(bonus_shape=jnp.asarray(1.0), bonus_width_rad=jnp.full((3,), 0.0873),
                   w_track=jnp.asarray([1.0, 2.0, 3.0]), recovered_bonus=jnp.asarray(5.0),
-                  action_rate_weight=jnp.asarray(0.3))  # fmt: skip
+                  action_rate_weight=jnp.asarray(0.3), speed_weight=jnp.asarray(2.0),
+                  alpha_v_lo_fps=jnp.asarray(450.0), alpha_v_hi_fps=jnp.asarray(600.0))  # fmt: skip
     t = jax.vmap(lambda *z: reward.reward_terms(*z[:5], w, z[5])[0])(x, target, a, pot, term, a_prev)
     perf = (t.raw + t.bonus_alpha + t.bonus_beta + t.bonus_mu + t.action + t.dense_alpha + t.dense_beta
-            + t.dense_mu + t.recovered + t.action_rate)  # fmt: skip
+            + t.dense_mu + t.recovered + t.action_rate + t.speed)  # fmt: skip
     expect = np.where(np.asarray(term), np.asarray(t.terminal), np.asarray(perf)) + np.asarray(t.shaping)
     np.testing.assert_allclose(t.total, expect, rtol=1e-5, atol=1e-4)
 
@@ -133,6 +135,12 @@ def test_total_adds_our_terms():
         ({"reward": {"bonus_shape": 2}}, "reward.bonus_shape = 2 is outside the allowed range [0, 1]"),
         ({"reward": {"recovered_bonus": float("nan")}}, "reward.recovered_bonus"),
         ({"reward": {"bogus": 1}}, "unknown [reward] setting 'bogus'"),
+        (
+            {"reward": {"speed_scale_fps": 0.0}},
+            "reward.speed_scale_fps = 0.0 is outside the allowed range [1, 10000]",
+        ),
+        ({"reward": {"speed_weight": -1.0}}, "reward.speed_weight = -1.0 is outside"),
+        ({"reward": {"alpha_v_hi_fps": 2e6}}, "reward.alpha_v_hi_fps = 2000000.0 is outside"),
         ({"spin": {"reset_prob": 1.5}}, "spin.reset_prob = 1.5 is outside the allowed range [0, 1]"),
         ({"spin": {"bank_size": 0}}, "spin.bank_size = 0 is outside"),
         ({"spin": {"spin_s_min": 20.0, "spin_s_max": 10.0}}, "spin.spin_s_max = 10.0 is outside"),
@@ -175,6 +183,66 @@ def test_mu_weight_by_hand():
     assert float(reward.mu_weight(jnp.asarray(1.5), W)) == 1.0  # the paper's settings: no weighting
 
 
+def test_alpha_weight_by_hand():
+    # lo = 450, hi = 600 ft/s: V = 300 -> 1; 700 -> 0; 525 (t = 0.5) -> 0.5; 487.5 (t = 0.25) -> 0.84375
+    w = W.replace(alpha_v_lo_fps=jnp.asarray(450.0), alpha_v_hi_fps=jnp.asarray(600.0))
+    got = [float(reward.alpha_weight(jnp.asarray(v), w)) for v in (300.0, 700.0, 525.0, 487.5)]
+    np.testing.assert_allclose(got, [1.0, 0.0, 0.5, 0.84375], rtol=1e-5, atol=1e-6)
+    assert float(reward.alpha_weight(jnp.asarray(1500.0), W)) == 1.0  # the paper's settings: no weighting
+
+
+def test_speed_penalty_by_hand():
+    # w = 4, ref 450, scale 500 ft/s: V = 400 -> 0; 700 -> -4 * 250/500 = -2; 1200 -> -4 (clipped at 1)
+    w = W.replace(speed_weight=jnp.asarray(4.0), speed_ref_fps=jnp.asarray(450.0),
+                  speed_scale_fps=jnp.asarray(500.0))  # fmt: skip
+    got = [float(reward.speed_penalty(jnp.asarray(v), w)) for v in (400.0, 700.0, 1200.0)]
+    np.testing.assert_allclose(got, [0.0, -2.0, -4.0], rtol=1e-6)
+
+
+def test_alpha_terms_weighted_out_when_fast():
+    """At V = 700 ft/s with alpha_v_hi 600 the alpha bonus and dense term are 0; at 300 ft/s they are paid;
+    the speed term of a full step is the hand value."""
+    w = W.replace(bonus_shape=jnp.asarray(1.0), bonus_width_rad=jnp.full((3,), 0.0873),
+                  w_track=jnp.asarray([4.0, 3.0, 3.0]), alpha_v_lo_fps=jnp.asarray(450.0),
+                  alpha_v_hi_fps=jnp.asarray(600.0), speed_weight=jnp.asarray(4.0),
+                  speed_ref_fps=jnp.asarray(450.0), speed_scale_fps=jnp.asarray(500.0))  # fmt: skip
+    target = jnp.asarray([0.349, 0.0, 0.0])
+    a = jnp.zeros(3)
+    for v, paid in ((700.0, False), (300.0, True)):
+        x = jnp.zeros(10).at[0].set(v).at[1].set(0.349 + 0.25)  # e_alpha = 0.25 rad
+        t = reward.reward_terms(x, target, a, jnp.asarray(0.0), jnp.asarray(False), w)[0]
+        # dense_alpha = -4 * 0.25/0.5 = -2; bonus_alpha = 5 exp(-(0.25/0.0873)^2) = 5 * 2.74e-4 = 1.37e-3
+        np.testing.assert_allclose(float(t.dense_alpha), -2.0 if paid else 0.0, rtol=1e-5, atol=1e-7)
+        np.testing.assert_allclose(float(t.bonus_alpha), 1.37e-3 if paid else 0.0, rtol=1e-2, atol=1e-7)
+        np.testing.assert_allclose(float(t.speed), -4.0 * 250.0 / 500.0 if v == 700.0 else 0.0, rtol=1e-6)
+
+
+def test_alpha_brake_target_by_hand():
+    """alpha_brake_on: the alpha terms track w alpha_d + (1 - w) alpha_brake, w the speed weight; the
+    recovered term still uses the true alpha_d."""
+    w = W.replace(w_track=jnp.asarray([4.0, 3.0, 3.0]), alpha_v_lo_fps=jnp.asarray(450.0),
+                  alpha_v_hi_fps=jnp.asarray(600.0), alpha_brake_on=jnp.asarray(1.0),
+                  alpha_brake_rad=jnp.asarray(1.0), recovered_bonus=jnp.asarray(5.0))  # fmt: skip
+    target = jnp.asarray([0.349, 0.0, 0.0])
+    a = jnp.zeros(3)
+
+    def step(v, alpha):
+        x = jnp.zeros(10).at[0].set(v).at[1].set(alpha)
+        return reward.reward_terms(x, target, a, jnp.asarray(0.0), jnp.asarray(False), w)[0]
+
+    # V = 700 (w = 0): ref 1.0 rad; alpha 0.75 -> -4 * 0.25/0.5 = -2; alpha 1.0 -> 0 and bonus 5
+    np.testing.assert_allclose(float(step(700.0, 0.75).dense_alpha), -2.0, rtol=1e-5)
+    np.testing.assert_allclose(float(step(700.0, 1.0).dense_alpha), 0.0, atol=1e-6)
+    assert float(step(700.0, 1.0).bonus_alpha) == 5.0  # the paper's indicator: 5 [|e| < 0.017]
+    # V = 525 (w = 0.5): ref 0.5 * 0.349 + 0.5 * 1.0 = 0.6745; alpha 0.4245 -> -4 * 0.25/0.5 = -2
+    np.testing.assert_allclose(float(step(525.0, 0.4245).dense_alpha), -2.0, rtol=1e-4)
+    # V = 300 (w = 1): ref alpha_d; at alpha_d the recovered term is paid (omega 0, beta = mu = 0)
+    t = step(300.0, 0.349)
+    np.testing.assert_allclose(float(t.dense_alpha), 0.0, atol=1e-6)
+    assert float(t.recovered) == 5.0
+    assert float(step(700.0, 1.0).recovered) == 0.0  # on the braking ref but 37 deg off alpha_d
+
+
 def test_cli_bad_reward_table_exit_2(monkeypatch, capsys, tmp_path):
     """A [spin] mix out of range in a preset: one line naming the key and the range, exit 2, no run folder."""
     from cli_util import cli_run
@@ -188,3 +256,29 @@ def test_cli_bad_reward_table_exit_2(monkeypatch, capsys, tmp_path):
     assert code == 2
     assert err.strip() == "harv-jax: error: spin.reset_prob = 1.5 is outside the allowed range [0, 1]"
     assert not (tmp_path / "run").exists()
+
+
+def test_fast_preset_is_recovery_plus_braking():
+    """The fast preset is the recovery preset with energy braking in the reward and nothing else (so the
+    experiments/fast_policy ablation is a reward ablation); its tables build valid traced params."""
+    from harv_jax.training.presets import load_preset
+
+    ppo_f, env_f = load_preset("fast")
+    ppo_r, env_r = load_preset("recovery")
+    assert ppo_f == ppo_r
+    assert {k: v for k, v in env_f.items() if k != "reward"} == {
+        k: v for k, v in env_r.items() if k != "reward"
+    }
+    changed = {
+        k for k in env_f["reward"] | env_r["reward"] if env_f["reward"].get(k) != env_r["reward"].get(k)
+    }
+    assert changed == {
+        "track_clip_rad",
+        "alpha_brake_on",
+        "alpha_brake_rad",
+        "alpha_v_lo_fps",
+        "alpha_v_hi_fps",
+    }
+    flat, nested = settings.split_tables(env_f)
+    p = settings.env_params(settings.env_config(flat), {**nested, "spin": {}})
+    assert float(p.reward.alpha_brake_on) == 1.0 and float(p.reward.alpha_v_hi_fps) == 550.0

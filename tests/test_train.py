@@ -324,11 +324,11 @@ def test_presets_load_and_bad_values():
 
 def test_presets_load_from_package_data():
     """The presets live once, as package data (what a non-editable install loads too)."""
-    assert presets.available_presets() == ["paper-full", "paper-partial", "recovery", "smoke"]
+    assert presets.available_presets() == ["fast", "paper-full", "paper-partial", "recovery", "smoke"]
     assert str(presets.preset_path("smoke")) == str(presets.PRESET_DIR / "smoke.toml")
     assert not (REPO / "experiments" / "presets").exists()
     with pytest.raises(
-        UsageError, match="unknown preset .nope.; available: paper-full, paper-partial, recovery, smoke"
+        UsageError, match="unknown preset .nope.; available: fast, paper-full, paper-partial, recovery, smoke"
     ):
         presets.load_preset("nope")
 

@@ -110,6 +110,14 @@ class RewardParams:
             0 for |gamma| >= hi, a smoothstep between (mu is undefined at a vertical flight path; the SMC
             blends its mu channel out over the same kind of band). Paper: no weighting (lo = hi = 10 rad,
             beyond any |gamma|).
+        alpha_v_lo_fps, alpha_v_hi_fps: the alpha terms (bonus and dense) are weighted by 1 for V <= lo, 0 for
+            V >= hi, a smoothstep between (fast, the aircraft sheds energy at high alpha instead of tracking
+            alpha_d). Paper: no weighting (lo = hi = 1e6 ft/s, beyond any V).
+        alpha_brake_on, alpha_brake_rad: when alpha_brake_on = 1, the alpha terms are not weighted out by
+            speed but track alpha_ref = w alpha_d + (1 - w) alpha_brake, w the speed weight above: a high-drag
+            alpha while fast ("energy braking"). Paper: off (0).
+        speed_weight, speed_ref_fps, speed_scale_fps: dense excess-speed term
+            -speed_weight clip((V - speed_ref) / speed_scale, 0, 1) (paper: speed_weight 0).
 
     The fields after ``terminal_reward`` are ours (``experiments/reward_ablation``); their defaults leave the
     paper's reward unchanged bit for bit.
@@ -138,6 +146,13 @@ class RewardParams:
     raw_weight: jnp.ndarray
     mu_gamma_lo_rad: jnp.ndarray
     mu_gamma_hi_rad: jnp.ndarray
+    alpha_v_lo_fps: jnp.ndarray
+    alpha_v_hi_fps: jnp.ndarray
+    alpha_brake_on: jnp.ndarray
+    alpha_brake_rad: jnp.ndarray
+    speed_weight: jnp.ndarray
+    speed_ref_fps: jnp.ndarray
+    speed_scale_fps: jnp.ndarray
 
 
 def paper_reward_params(discount: float = 0.99, dtype=None) -> RewardParams:
@@ -153,6 +168,9 @@ def paper_reward_params(discount: float = 0.99, dtype=None) -> RewardParams:
         bonus_shape=f(0.0), bonus_width_rad=f([0.017, 0.017, 0.017]), w_track=f([0.0, 0.0, 0.0]),
         track_clip_rad=f([0.5, 0.5, 0.5]), recovered_bonus=f(0.0), recovered_tol=f(RECOVERED_TOL),
         action_rate_weight=f(0.0), raw_weight=f(1.0), mu_gamma_lo_rad=f(10.0), mu_gamma_hi_rad=f(10.0),
+        alpha_v_lo_fps=f(1e6), alpha_v_hi_fps=f(1e6), alpha_brake_on=f(0.0), alpha_brake_rad=f(1.0),
+        speed_weight=f(0.0), speed_ref_fps=f(600.0),
+        speed_scale_fps=f(400.0),
     )  # fmt: skip
 
 

@@ -29,7 +29,11 @@ paper's bit for bit, ``tests/test_reward.py``):
     r_raw       = raw_weight ((1 - eps) r_phase1 + eps r_phase2)     (paper: raw_weight = 1)
     w_mu(gamma) = 1 - smoothstep((|gamma| - mu_gamma_lo) / (mu_gamma_hi - mu_gamma_lo)) multiplies the mu
                   bonus and dense_mu (paper: 1 at every gamma)
-    reward      = paper reward + dense + recovered + action_rate     (non-terminal step)
+    w_alpha(V)  = 1 - smoothstep((V - alpha_v_lo) / (alpha_v_hi - alpha_v_lo)) multiplies the alpha bonus and
+                  dense_alpha (paper: 1 at every V); with alpha_brake_on = 1 instead the alpha bonus and
+                  dense_alpha are paid on alpha - (w_alpha alpha_d + (1 - w_alpha) alpha_brake)
+    speed       = -speed_weight clip((V - speed_ref) / speed_scale, 0, 1)   (excess speed, ft/s)
+    reward      = paper reward + dense + recovered + action_rate + speed   (non-terminal step)
     reward   = terminal_reward + (Gamma * 0 - sigma_t)                 (terminating step)
 
 The paper lists the bonuses and the action penalty as "Additional Reward" next to the blended phases, so
@@ -51,7 +55,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from harv_jax.dynamics.state import alpha_rad, gamma_rad, omega_radps
+from harv_jax.dynamics.state import alpha_rad, gamma_rad, omega_radps, vt_fps
 from harv_jax.env.config import RewardParams
 from harv_jax.task.criteria import tracking_errors
 
@@ -74,6 +78,7 @@ class RewardTerms(NamedTuple):
     dense_mu: jnp.ndarray
     recovered: jnp.ndarray
     action_rate: jnp.ndarray
+    speed: jnp.ndarray
     total: jnp.ndarray
 
 
@@ -132,6 +137,19 @@ def mu_weight(gamma_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
     width = jnp.maximum(params.mu_gamma_hi_rad - params.mu_gamma_lo_rad, 1e-6)
     t = jnp.clip((jnp.abs(gamma_rad) - params.mu_gamma_lo_rad) / width, 0.0, 1.0)
     return 1.0 - t * t * (3.0 - 2.0 * t)
+
+
+def alpha_weight(v_fps: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
+    """Weight of the alpha terms: 1 for V <= alpha_v_lo_fps, 0 for V >= alpha_v_hi_fps."""
+    width = jnp.maximum(params.alpha_v_hi_fps - params.alpha_v_lo_fps, 1e-6)
+    t = jnp.clip((v_fps - params.alpha_v_lo_fps) / width, 0.0, 1.0)
+    return 1.0 - t * t * (3.0 - 2.0 * t)
+
+
+def speed_penalty(v_fps: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
+    """Excess-speed term -speed_weight clip((V - speed_ref_fps) / speed_scale_fps, 0, 1)."""
+    excess = jnp.clip((v_fps - params.speed_ref_fps) / params.speed_scale_fps, 0.0, 1.0)
+    return -params.speed_weight * excess
 
 
 def dense_tracking(errors_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
@@ -205,8 +223,13 @@ def reward_terms(
     r2 = phase2(e_alpha, pqr, params)
     r_raw = params.raw_weight * ((1.0 - eps) * r1 + eps * r2)  # raw_weight 1 (paper): x * 1.0 == x
     w_mu = mu_weight(gamma_rad(x_wind), params)  # exactly 1 at the paper's settings: x * 1.0 == x
-    channel_w = jnp.stack([jnp.ones_like(w_mu), jnp.ones_like(w_mu), w_mu])
-    bonus = bonuses(errors, params) * channel_w
+    w_alpha = alpha_weight(vt_fps(x_wind), params)  # exactly 1 at the paper's settings
+    brake = params.alpha_brake_on > 0.5  # off (paper): the errors and weights are taken as they are
+    shift = (1.0 - w_alpha) * (target_rad[0] - params.alpha_brake_rad)
+    track_errors = jnp.where(brake, errors.at[0].add(shift), errors)
+    w_alpha = jnp.where(brake, jnp.ones_like(w_alpha), w_alpha)
+    channel_w = jnp.stack([w_alpha, jnp.ones_like(w_mu), w_mu])
+    bonus = bonuses(track_errors, params) * channel_w
     r_action = action_penalty(action, params)
     pot_next = potential(e_alpha, pqr, params)
     pot_target = jnp.where(terminated, jnp.zeros_like(pot_next), pot_next)
@@ -216,12 +239,13 @@ def reward_terms(
     def paid(v):
         return jnp.where(terminated, zero, v)
 
-    dense = dense_tracking(errors, params) * channel_w
+    dense = dense_tracking(track_errors, params) * channel_w
     r_recovered = recovered_term(errors, pqr, params)
     r_rate = action_rate_penalty(action, action if action_prev is None else action_prev, params)
+    r_speed = speed_penalty(vt_fps(x_wind), params)
     r_terminal = jnp.where(terminated, params.terminal_reward, zero)
     # the paper's sum first, our terms added after it: zero weights leave it bit for bit
-    performance = (r_raw + jnp.sum(bonus) + r_action) + (jnp.sum(dense) + r_recovered + r_rate)
+    performance = (r_raw + jnp.sum(bonus) + r_action) + (jnp.sum(dense) + r_recovered + r_rate + r_speed)
     total = jnp.where(terminated, r_terminal, performance) + r_shaping
     terms = RewardTerms(
         phase1=paid(r1),
@@ -239,6 +263,7 @@ def reward_terms(
         dense_mu=paid(dense[2]),
         recovered=paid(r_recovered),
         action_rate=paid(r_rate),
+        speed=paid(r_speed),
         total=total,
     )
     return terms, pot_next

@@ -65,6 +65,13 @@ REWARD_RANGES: dict[str, tuple[float, float, int | None]] = {
     "raw_weight": (0.0, 100.0, None),
     "mu_gamma_lo_rad": (0.0, 10.0, None),
     "mu_gamma_hi_rad": (0.0, 10.0, None),
+    "alpha_v_lo_fps": (0.0, 1e6, None),
+    "alpha_v_hi_fps": (0.0, 1e6, None),
+    "alpha_brake_on": (0.0, 1.0, None),
+    "alpha_brake_rad": (-0.5, 1.5, None),
+    "speed_weight": (0.0, 1000.0, None),
+    "speed_ref_fps": (0.0, 1e4, None),
+    "speed_scale_fps": (1.0, 1e4, None),
 }
 #: Allowed range of the randomization ranges (switches are booleans).
 RANDOMIZATION_RANGES: dict[str, tuple[float, float]] = {
