@@ -15,16 +15,17 @@ from pathlib import Path
 
 import typer
 
+from harv_jax.control.registry import DEFAULT_ZETA
 from harv_jax.errors import UsageError
 from harv_jax.task.spec import ALPHA_MAX_RAD, ALPHA_MIN_RAD, DT_S, H0_FT
 
 POLICY_HELP = (
-    "rl/hybrid policy: run folder, .npz, checkpoint\\[@seed], shipped:recovery (default), "
+    "rl/hybrid policy: run folder, .npz, checkpoint\\[@seed], shipped:fast (default), shipped:recovery, "
     "shipped:paper-full, shipped:paper-partial."
 )
 ZETA_HELP = (
-    "Hybrid zeta schedule: continuous, hysteresis (the paper's), gated (per channel, from the reaching "
-    "condition), simplex (the policy alone until a monitor hands over to the SMC for good), always, never."
+    "Hybrid zeta schedule: simplex (the policy alone until a monitor hands over to the SMC for good), "
+    "continuous, hysteresis (the paper's), gated (per channel, from the reaching condition), always, never."
 )
 MAX_RUNS = 1_000_000
 MAX_DURATION_S = 600.0
@@ -44,17 +45,17 @@ STATE_LIMITS = {
 
 
 def policy_option():
-    """``--policy`` (default None = the default shipped policy, ``shipped:recovery``)."""
+    """``--policy`` (default None = the default shipped policy, ``shipped:fast``)."""
     return typer.Option(None, help=POLICY_HELP)
 
 
 def zeta_option():
-    """``--zeta`` (default continuous)."""
-    return typer.Option("continuous", help=ZETA_HELP)
+    """``--zeta`` (default ``registry.DEFAULT_ZETA``)."""
+    return typer.Option(DEFAULT_ZETA, help=ZETA_HELP)
 
 
 def controllers_help() -> str:
-    """``--controller`` help (the registry is not imported here: it loads jax, and ``--help`` stays fast)."""
+    """``--controller`` help (fixed text; the error for an unknown name lists the registered ones)."""
     return "Controllers, comma-separated: smc, rl, hybrid or another name in harv_jax.control.registry."
 
 

@@ -400,7 +400,10 @@ def test_hybrid_config_default_is_the_cli_default():
     from harv_jax.cli_options import zeta_option
     from harv_jax.control.hybrid import HybridConfig
 
-    assert HybridConfig().schedule == "continuous" == zeta_option().default
+    from harv_jax.control.registry import DEFAULT_ZETA, ControllerOptions
+
+    assert HybridConfig().schedule == DEFAULT_ZETA == zeta_option().default == ControllerOptions().zeta
+    assert DEFAULT_ZETA == "simplex"
 
 
 def test_policy_help_shows_the_seed_suffix():

@@ -150,6 +150,6 @@ def test_fly_hybrid_with_shipped_partial_policy(monkeypatch, capsys, tmp_path):
     assert (tmp_path / "h" / "hybrid.png").stat().st_size > 0
     z = data[:, header.index("zeta")]
     assert np.all((z >= 0) & (z <= 1))
-    assert doc["policy"] == "shipped:partial" and doc["zeta_schedule"] == "continuous"
+    assert doc["policy"] == "shipped:partial" and doc["zeta_schedule"] == "simplex"
     assert set(doc["certificate"]) == {"all_steps", "unsaturated_steps"}
     assert set(doc["certificate"]["all_steps"]) == {"alpha", "beta", "mu"}

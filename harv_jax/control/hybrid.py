@@ -42,6 +42,7 @@ from flax import struct
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
 from harv_jax.control.gate import GateGains, certificate_holds, default_gate_gains, gate
+from harv_jax.control.registry import DEFAULT_ZETA
 from harv_jax.control.safety import cap_authority, filter_command, limit_box
 from harv_jax.control.scheduling import (
     SIMPLEX_REASONS,
@@ -163,16 +164,16 @@ class HybridConfig:
     """Static options (changing them recompiles).
 
     Attributes:
-        schedule: zeta schedule: ``continuous`` (default, as the CLI), ``hysteresis`` (the paper's tube),
-            ``gated`` (per channel, from the reaching condition: ``harv_jax.control.gate``), ``simplex``
-            (zeta = 0 until a monitor trips, then 1 for good: ``scheduling.simplex_step``), ``always``
+        schedule: zeta schedule: ``simplex`` (default, as the CLI: zeta = 0 until a monitor trips, then 1
+            for good: ``scheduling.simplex_step``), ``continuous``, ``hysteresis`` (the paper's tube),
+            ``gated`` (per channel, from the reaching condition: ``harv_jax.control.gate``), ``always``
             (zeta = 1), ``never`` (zeta = 0, the filtered RL-only law).
         smc: SMCConfig of the feedback term.
         supervisor: enable the fallback supervisor.
         window_steps: length of the supervisor's intervention window, steps.
     """
 
-    schedule: ZetaSchedule = "continuous"
+    schedule: ZetaSchedule = DEFAULT_ZETA
     smc: SMCConfig = SMCConfig()
     supervisor: bool = True
     window_steps: int = 100

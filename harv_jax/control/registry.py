@@ -22,6 +22,9 @@ from harv_jax.errors import UsageError
 if TYPE_CHECKING:  # the table stays importable without jax (the CLI checks its arguments first)
     from harv_jax.control.base import Controller
 
+#: The hybrid's default zeta schedule: the policy alone until a monitor hands over to the SMC for good
+#: (``control.scheduling.simplex_step``; ``experiments/hybrid_simplex/README.md``).
+DEFAULT_ZETA = "simplex"
 #: Option names a builder may read (fields of ControllerOptions).
 OPTION_NAMES = ("policy", "zeta", "switching")
 
@@ -37,7 +40,7 @@ class ControllerOptions:
     """
 
     policy: str | None = None
-    zeta: str = "continuous"
+    zeta: str = DEFAULT_ZETA
     switching: str = "sat"
 
 

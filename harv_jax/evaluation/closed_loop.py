@@ -134,7 +134,9 @@ def closed_loop(
     if record_every == 1:
         carry, recs = jax.lax.scan(step, carry0, keys)
     else:
-        carry, recs = jax.lax.scan(chunk, carry0, keys.reshape((n_steps // record_every, record_every)))
+        carry, recs = jax.lax.scan(
+            chunk, carry0, keys.reshape((n_steps // record_every, record_every) + keys.shape[1:])
+        )
     state, delta, cstate, bad = carry
     x_rec, delta_rec, u_rec, info_rec = recs
     n_rec = n_steps // record_every

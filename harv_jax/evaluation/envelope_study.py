@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from harv_jax.control.registry import DEFAULT_ZETA
 from harv_jax.evaluation.envelope_map import EnvelopeGrid, EnvelopeMap
 from harv_jax.task.spec import DT_S
 
@@ -42,7 +43,7 @@ def envelope_study(
     duration_s: float,
     seed: int,
     chunk: int = 250,
-    zeta: str = "continuous",
+    zeta: str = DEFAULT_ZETA,
     command: str = "",
     progress: Callable[[str], None] | None = None,
 ) -> EnvelopeStudy:

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from harv_jax.control.registry import ControllerOptions
+from harv_jax.control.registry import DEFAULT_ZETA, ControllerOptions
 from harv_jax.task.spec import DT_S
 
 #: One flight: XLA compile time dominates the run time, so skip the backend's slow optimizations
@@ -114,7 +114,7 @@ def fly(
     spin_s: float = 30.0,
     controller: str = "smc",
     policy: str | None = None,
-    zeta: str = "continuous",
+    zeta: str = DEFAULT_ZETA,
 ) -> FlightResult:
     """Fly a registered controller from a scenario (no files).
 

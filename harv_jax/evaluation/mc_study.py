@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from harv_jax.control.registry import DEFAULT_ZETA
 from harv_jax.evaluation.monte_carlo import MCRunOutput
 from harv_jax.task.spec import DT_S, H0_FT
 
@@ -48,7 +49,7 @@ def monte_carlo(
     randomize: bool,
     chunk: int = 250,
     record_every: int = 10,
-    zeta: str = "continuous",
+    zeta: str = DEFAULT_ZETA,
     command: str = "",
     progress: Callable[[str], None] | None = None,
 ) -> MonteCarloStudy:
