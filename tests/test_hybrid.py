@@ -228,7 +228,7 @@ def test_bang_bang_policy_triggers_intervention_fallback_in_closed_loop():
 
 @chex.assert_max_traces(n=1)
 def _apply_batch(params, x, state):
-    hy = make_hybrid(_linear_policy(0))
+    hy = make_hybrid(_linear_policy(0), HybridConfig(schedule="continuous"))
     return jax.vmap(hy.apply, in_axes=(0, 0, None, None))(state, x, REF, jax.random.key(0))
 
 
@@ -237,7 +237,7 @@ def test_vmaps_over_aircraft_with_one_trace():
     base = _nominal()
     scale = jnp.linspace(0.9, 1.1, n)
     params = jax.vmap(lambda s: base.replace(mass_slug=base.mass_slug * s))(scale)
-    hy = make_hybrid(_linear_policy(0))
+    hy = make_hybrid(_linear_policy(0), HybridConfig(schedule="continuous"))
     state = jax.vmap(hy.init)(params)
     xs = jnp.tile(X0, (n, 1)).at[:, 1].set(jnp.linspace(0.1, 0.8, n))
     f = jax.jit(_apply_batch)

@@ -33,6 +33,8 @@ def mc_rows(folder: Path) -> list[str]:
             for ctrl, v in d["controllers"].items():
                 t = v["recovery_time_s"]
                 if ctrl == "smc":
+                    if smc_p50 is not None:
+                        continue  # every file flies the same runs: one SMC row
                     smc_p50 = t["p50"]
                 h = v.get("hybrid", {}).get("handover_run_fraction")
                 hand = "–" if not h else f"{h['any']:.2f} / {h['box']:.2f} / {h['deadline']:.2f}"
