@@ -11,10 +11,11 @@ One step, for the wind state x and the reference y_ref:
 4. zeta from the schedule (``harv_jax.control.scheduling``; 1 in fallback);
 5. u = u_RL + zeta u_fb, then the position/rate box of the safety filter (``safety.filter_command``).
 
-The ``simplex`` schedule (Simplex architecture) lets the policy act alone (zeta = 0) and hands over to the SMC
-for good (zeta = 1, u_RL = 0) on the first step the supervisor falls back, the policy's command is non-finite,
-or, from a deadline on, a tracking error leaves a tube (``scheduling.simplex_step``): the policy's speed is
-kept where it recovers, and the SMC's recovery covers the rest.
+The ``simplex`` schedule (Simplex architecture; the default) lets the policy act alone (zeta = 0) and hands
+over to the SMC for good (zeta = 1, u_RL = 0) on the first step the state leaves a box the SMC is shown to
+recover from, the policy's command is non-finite, or, from a deadline on, a tracking error leaves a tube
+(``scheduling.simplex_step``; it replaces step 1's supervisor): the policy's speed is kept where it recovers,
+and the SMC's recovery covers the rest.
 
 The ``gated`` schedule replaces 4-5 by ``harv_jax.control.gate``: a zeta per channel, the least that keeps
 the reaching condition for the command that acts (clipped to this step's box), u = u_RL + A^-1 (zeta (.)
