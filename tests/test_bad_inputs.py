@@ -399,7 +399,6 @@ def test_version(monkeypatch, capsys):
 def test_hybrid_config_default_is_the_cli_default():
     from harv_jax.cli_options import zeta_option
     from harv_jax.control.hybrid import HybridConfig
-
     from harv_jax.control.registry import DEFAULT_ZETA, ControllerOptions
 
     assert HybridConfig().schedule == DEFAULT_ZETA == zeta_option().default == ControllerOptions().zeta
