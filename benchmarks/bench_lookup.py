@@ -29,9 +29,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import datetime as _dt
 import os
-import platform
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -46,7 +44,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 from benchmarks.bench_step import build  # noqa: E402
-from benchmarks.common import cpu_model, load_average_1min, machine_name, write_json  # noqa: E402
+from benchmarks.common import load_average_1min, machine_name, result_header, write_json  # noqa: E402
 from harv_jax.aircraft import aero  # noqa: E402
 from harv_jax.aircraft import data_harv as data  # noqa: E402
 from harv_jax.units import DEG_PER_RAD  # noqa: E402
@@ -197,19 +195,9 @@ def main(argv: list[str] | None = None) -> dict:
             f"{s} {r['us_per_step']:.0f} us/step ({r['time_over_gather']:.2f}x gather; CPU time "
             f"{r['cpu_time_over_gather']:.2f}x; compile {r['compile_s']:.1f} s)" for s, r in rows[k].items()),
             flush=True)  # fmt: skip
-    dev = jax.devices()[0]
     machine = machine_name(args.machine)
     result = {
-        "benchmark": "lookup",
-        "machine": machine,
-        "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "note": args.note,
-        "jax": jax.__version__,
-        "python": platform.python_version(),
-        "platform": platform.platform(),
-        "cpu_model": cpu_model(),
-        "device": {"platform": dev.platform, "kind": dev.device_kind, "count": jax.local_device_count()},
-        "load_average_1min_before_after": [load_before, load_average_1min()],
+        **result_header("lookup", machine, args.note, load_before),
         "config": {
             "batch": args.batch,
             "steps_per_call": args.steps,

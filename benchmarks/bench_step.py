@@ -18,9 +18,7 @@ Results go to ``benchmarks/results/step_<machine>.json``.
 from __future__ import annotations
 
 import argparse
-import datetime as _dt
 import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -29,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # the repository root, for benchmarks.*
 os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=1")
 
-from benchmarks.common import cpu_model, load_average_1min, machine_name, write_json  # noqa: E402
+from benchmarks.common import cpu_model, load_average_1min, machine_name, result_header, write_json  # noqa: E402
 from harv_jax.policies import DEFAULT_POLICY_SPEC  # noqa: E402
 
 DT_S = 0.01
@@ -209,16 +207,7 @@ def main(argv: list[str] | None = None) -> dict:
             print(f"{k} / smc: {rows['current']['ratios'][f'{k}_over_smc']:.2f}", flush=True)
     ratios = rows["current"]["ratios"]
     result = {
-        "benchmark": "step",
-        "machine": machine,
-        "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "note": args.note,
-        "jax": jax.__version__,
-        "python": platform.python_version(),
-        "platform": platform.platform(),
-        "cpu_model": cpu_model(),
-        "device": {"platform": dev.platform, "kind": dev.device_kind, "count": jax.local_device_count()},
-        "load_average_1min_before_after": [load_before, load_average_1min()],
+        **result_header("step", machine, args.note, load_before),
         "config": {
             "batch": args.batch,
             "steps_per_call": args.steps,

@@ -32,8 +32,6 @@ says why it was skipped. ``benchmarks/bench_sb3.py`` is the dedicated side-by-si
 from __future__ import annotations
 
 import argparse
-import datetime as _dt
-import platform
 import sys
 import time
 from pathlib import Path
@@ -62,7 +60,7 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
-from benchmarks.common import cpu_cores, cpu_model, load_average_1min, machine_name, write_json  # noqa: E402
+from benchmarks.common import cpu_cores, load_average_1min, machine_name, result_header, write_json  # noqa: E402
 from harv_jax.env import EnvConfig, default_params, make_env  # noqa: E402
 from harv_jax.env.episode_metrics import harv_episode_metrics  # noqa: E402
 from harv_jax.ppo import config as ppo_config  # noqa: E402
@@ -227,17 +225,8 @@ def main() -> None:
         sb3["ratio_best_jax_over_sb3"] = best["env_steps_per_s"] / sb3["env_steps_per_s"]
     print(f"SB3: {sb3}", flush=True)
     result = {
-        "benchmark": "train",
-        "machine": machine,
-        "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "note": args.note,
-        "jax": jax.__version__,
-        "python": platform.python_version(),
-        "platform": platform.platform(),
-        "device": {"platform": dev.platform, "kind": dev.device_kind, "count": jax.device_count()},
+        **result_header("train", machine, args.note, load_before, device_count=jax.device_count()),
         "cpu_affinity": cpu_cores(),
-        "load_average_1min_before_after": [load_before, load_average_1min()],
-        "cpu_model": cpu_model(),
         "config": {
             "hidden_sizes": list(HIDDEN),
             "unroll": args.unroll,

@@ -63,3 +63,34 @@ def machine_name(override: str | None = None) -> str:
             m = re.search(r"\b([a-z]\d{2,4}[a-z]?)\b", dev.device_kind.lower())  # h100, a100, h200, l4 ...
             name = f"{dev.platform}-{m.group(1) if m else dev.device_kind}"
     return re.sub(r"[^a-z0-9._-]+", "-", name.lower()).strip("-")
+
+
+def result_header(
+    benchmark: str, machine: str, note: str, load_before: float | None, device_count: int | None = None
+) -> dict[str, Any]:
+    """The fields every benchmark JSON opens with: what ran, where, when, on which CPU and how busy it was.
+
+    ``device_count``: the devices recorded (default ``jax.local_device_count()``).
+    """
+    import datetime as dt
+    import platform
+
+    import jax
+
+    dev = jax.devices()[0]
+    return {
+        "benchmark": benchmark,
+        "machine": machine,
+        "date": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+        "note": note,
+        "jax": jax.__version__,
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "cpu_model": cpu_model(),
+        "device": {
+            "platform": dev.platform,
+            "kind": dev.device_kind,
+            "count": jax.local_device_count() if device_count is None else device_count,
+        },
+        "load_average_1min_before_after": [load_before, load_average_1min()],
+    }
