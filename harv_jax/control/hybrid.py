@@ -321,7 +321,8 @@ def make_hybrid(
         limit_counted = limit_active & rl_active
         chan = cap_counted | limit_counted
         intervened = jnp.any(chan)
-        sup = record_intervention(sup, intervened)
+        if cfg.schedule != "simplex":  # the simplex monitor reads no intervention window
+            sup = record_intervention(sup, intervened)
 
         new_state = state.replace(
             integral_rad_s=integral,

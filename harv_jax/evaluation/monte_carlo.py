@@ -22,6 +22,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.aircraft.randomize import default_aircraft_randomization, sample_aircraft
 from harv_jax.control.base import Controller
+from harv_jax.control.scheduling import SIMPLEX_REASONS
 from harv_jax.dynamics.state import TRACKED_INDEX, WIND_INDEX
 from harv_jax.evaluation.closed_loop import closed_loop, score
 from harv_jax.evaluation.metrics import RunMetrics
@@ -239,8 +240,8 @@ def gate_summary(info: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-#: The ``simplex`` schedule's reasons to hand over to the SMC (``control.scheduling.SIMPLEX_REASONS``).
-HANDOVER_REASONS = ("box", "deadline", "nonfinite")
+#: The ``simplex`` schedule's reasons to hand over to the SMC (without "none").
+HANDOVER_REASONS = SIMPLEX_REASONS[1:]
 
 
 def simplex_summary(info: dict[str, Any]) -> dict[str, Any]:
