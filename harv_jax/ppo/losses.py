@@ -139,8 +139,7 @@ def ppo_loss(
     Returns:
         (scalar loss, metrics dict of scalars).
     """
-    mean, log_std = networks.policy(params, batch.obs)
-    value = networks.value(params, batch.obs)
+    mean, log_std, value = networks.policy_and_value(params, batch.obs)
     log_prob = gaussian_log_prob(mean, log_std, batch.raw_action)
     log_ratio = log_prob - batch.log_prob
     ratio = jnp.exp(log_ratio)

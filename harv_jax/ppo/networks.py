@@ -118,6 +118,68 @@ class PPONetworks(NamedTuple):
         """obs [..., O] (already normalised) -> value [...] (scaled-reward units)."""
         return self.critic.apply(params.value, obs)
 
+    def policy_and_value(self, params: PPOParams, obs: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+        """obs [..., O] -> (mean [..., A], log_std [..., A], value [...]) for a training batch.
+
+        Equal to :meth:`policy` and :meth:`value` to float rounding, computed feature-major by
+        :func:`mlp_feature_major` (faster gradients on CPU, see there).
+        """
+        mean = mlp_feature_major(params.policy["params"]["mlp"], obs)
+        log_std = jnp.broadcast_to(params.policy["params"]["log_std"], mean.shape)
+        value = mlp_feature_major(params.value["params"]["mlp"], obs)[..., 0]
+        return mean, log_std, value
+
+
+@jax.custom_vjp
+def _dense_t(kernel: jax.Array, bias: jax.Array, h: jax.Array) -> jax.Array:
+    """``kernel^T h + bias`` on ``h [in, B]`` -> [out, B] (a Dense layer, batch on the last axis)."""
+    # the barrier keeps kernel^T a materialised [out, in] array (folded into the dot, the transpose makes a
+    # dot that contracts the rows' first axis, which XLA's CPU backend runs on its slower Eigen path)
+    return jax.lax.optimization_barrier(kernel.T) @ h + bias[:, None]
+
+
+def _dense_t_fwd(kernel: jax.Array, bias: jax.Array, h: jax.Array) -> tuple[jax.Array, tuple]:
+    return _dense_t(kernel, bias, h), (kernel, h)
+
+
+def _dense_t_bwd(res: tuple, dz: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+    kernel, h = res
+    d_kernel = jax.lax.dot_general(h, dz, (((1,), (1,)), ((), ())))  # h dz^T: [in, out], contracts B
+    return d_kernel, jnp.sum(dz, axis=1), kernel @ dz
+
+
+_dense_t.defvjp(_dense_t_fwd, _dense_t_bwd)
+
+
+def mlp_feature_major(mlp_params: Params, x: jax.Array) -> jax.Array:
+    """:class:`MLP` applied to ``x [..., I]`` from its parameters, with the batch as the last axis inside.
+
+    Same arithmetic as ``MLP.apply`` (``tanh(x W + b)`` per hidden layer, a linear output), but each layer
+    is ``W^T h`` on ``h [features, batch]`` with a hand-written gradient, so that every dot of the forward and
+    backward pass contracts an axis that is contiguous in both operands, or has a small weight operand. On
+    XLA's CPU backend those dots run in YNNPACK, whereas the batch-major weight gradient (``h^T dz``, the
+    batch on the first axis of both operands) falls back to a slower Eigen dot (1.6x at [4096, 256] x
+    [4096, 128]). A custom VJP rather than autodiff: under the trainer's ``vmap`` over seeds, autodiff of the
+    transposed layout made XLA insert full transposes of the activations. Results equal ``MLP.apply`` to
+    float rounding. Measured on the 2-core AVX-512 EPYC: one trainer period at 1,024 envs (actor and critic
+    [256, 128], 4 x 8 minibatches of 4,096) 1.14x faster than with the flax modules' autodiff, side by side.
+
+    Args:
+        mlp_params: the ``MLP``'s parameters (``hidden_0 ... hidden_{k-1}``, ``out``; each kernel [in, out]).
+        x: [..., I] inputs.
+
+    Returns:
+        [..., out_size] outputs.
+    """
+    lead = x.shape[:-1]
+    h = x.reshape(-1, x.shape[-1]).T  # [I, B]
+    n_hidden = sum(1 for name in mlp_params if name.startswith("hidden_"))
+    for i in range(n_hidden):
+        layer = mlp_params[f"hidden_{i}"]
+        h = jnp.tanh(_dense_t(layer["kernel"], layer["bias"], h))
+    y = _dense_t(mlp_params["out"]["kernel"], mlp_params["out"]["bias"], h)  # [out_size, B]
+    return y.T.reshape(lead + (y.shape[0],))
+
 
 def make_ppo_networks(
     observation_size: int,
