@@ -162,7 +162,8 @@ def mlp_feature_major(mlp_params: Params, x: jax.Array) -> jax.Array:
     [4096, 128]). A custom VJP rather than autodiff: under the trainer's ``vmap`` over seeds, autodiff of the
     transposed layout made XLA insert full transposes of the activations. Results equal ``MLP.apply`` to
     float rounding. Measured on the 2-core AVX-512 EPYC: one trainer period at 1,024 envs (actor and critic
-    [256, 128], 4 x 8 minibatches of 4,096) 1.14x faster than with the flax modules' autodiff, side by side.
+    [256, 128], 4 x 8 minibatches of 4,096) faster than with the flax modules' autodiff, side by side: 1.06x
+    on the quiet machine (median of 8 alternations), 1.14x with other jobs running.
 
     Args:
         mlp_params: the ``MLP``'s parameters (``hidden_0 ... hidden_{k-1}``, ``out``; each kernel [in, out]).
