@@ -14,7 +14,14 @@ from harv_jax.aircraft import harv
 from harv_jax.control import make_smc
 from harv_jax.control.hybrid import HybridConfig, default_hybrid_gains, make_hybrid
 from harv_jax.control.rl import make_rl_controller
-from harv_jax.control.scheduling import SIMPLEX_REASONS, simplex_init, simplex_step
+from harv_jax.control.scheduling import (
+    SIMPLEX_FALLBACK_SMC,
+    SIMPLEX_REASONS,
+    simplex_fallback_gains,
+    simplex_init,
+    simplex_step,
+)
+from harv_jax.control.smc import default_gains
 from harv_jax.evaluation import closed_loop
 from harv_jax.task.scenarios import sample_table_states
 
@@ -25,7 +32,8 @@ DT = 0.01
 X0 = jnp.array([500.0, 0.60, 0.05, 0.5, -0.05, 0.3, 0.4, 0.1, 0.0, 20000.0])
 SPIN_DELTA0 = jnp.array([-0.436, 0.436, 0.524])
 SIMPLEX = HybridConfig(schedule="simplex")
-SMC = make_smc()  # one object: ``_fly`` compiles it once
+#: The SMC the simplex schedule hands over to (one object: ``_fly`` compiles it once).
+SMC = make_smc(gains=simplex_fallback_gains(jnp.float32))
 
 
 def _nominal():
@@ -87,8 +95,20 @@ def test_before_any_hand_over_the_policy_flies_alone():
     np.testing.assert_allclose(r_h.traj.x_wind[:, 1:9], r_r.traj.x_wind[:, 1:9], atol=1e-5)
 
 
+def test_fallback_gains_are_the_default_gains_but_the_softer_reaching_and_surface():
+    d, f = default_gains(jnp.float32), simplex_fallback_gains(jnp.float32)
+    for name in d.__dataclass_fields__:
+        want = SIMPLEX_FALLBACK_SMC.get(name)
+        got, default = np.asarray(getattr(f, name)), np.asarray(getattr(d, name))
+        assert got.shape == default.shape and got.dtype == default.dtype
+        np.testing.assert_array_equal(got, default if want is None else np.full_like(default, want))
+    assert set(SIMPLEX_FALLBACK_SMC) == {"lambda1_ps", "k_reach", "eps_radps2", "phi_radps"}
+    chex.assert_trees_all_equal(default_hybrid_gains(jnp.float32).simplex.fallback_smc, f)  # what it flies
+
+
 def test_hand_over_at_engagement_flies_the_smc():
-    """Tube 0 and deadline 0: the SMC from the first step, u_RL dropped (equal to the SMC flown alone)."""
+    """Tube 0 and deadline 0: the SMC from the first step, u_RL dropped (equal to the fallback SMC flown
+    alone)."""
     params = _nominal()
     r_h = _fly_simplex(_weights(1), _gains(deadline_s=0.0, tube_rad=(0.0, 0.0, 0.0)), params, X0, SPIN_DELTA0)
     r_s = _fly(SMC, N_STEPS, params, X0, SPIN_DELTA0)

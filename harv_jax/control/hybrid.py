@@ -15,7 +15,8 @@ The ``simplex`` schedule (Simplex architecture; the default) lets the policy act
 over to the SMC for good (zeta = 1, u_RL = 0) on the first step the state leaves a box the SMC is shown to
 recover from, the policy's command is non-finite, or, from a deadline on, a tracking error leaves a tube
 (``scheduling.simplex_step``; it replaces step 1's supervisor): the policy's speed is kept where it recovers,
-and the SMC's recovery covers the rest.
+and the SMC's recovery covers the rest. Its SMC flies with the softer ``scheduling.simplex_fallback_gains``
+(less control activity after the hand-over); every other schedule uses ``HybridGains.smc``.
 
 The ``gated`` schedule replaces 4-5 by ``harv_jax.control.gate``: a zeta per channel, the least that keeps
 the reaching condition for the command that acts (clipped to this step's box), u = u_RL + A^-1 (zeta (.)
@@ -52,6 +53,7 @@ from harv_jax.control.scheduling import (
     ZetaState,
     continuous_zeta,
     hysteresis_step,
+    simplex_fallback_gains,
     simplex_init,
     simplex_step,
     zeta_init,
@@ -69,7 +71,6 @@ from harv_jax.control.supervisor import (
 from harv_jax.task.criteria import tracking_errors
 from harv_jax.task.spaces import action_to_command, observation
 from harv_jax.task.spec import (
-    ALPHA_MIN_RAD,
     RECOVERY_ALPHA_TOL_RAD,
     RECOVERY_BETA_TOL_RAD,
     RECOVERY_MU_TOL_RAD,
@@ -127,11 +128,12 @@ DEFAULT_ZETA_FLOOR = 0.2
 #: ``simplex`` schedule: the policy must hold every tracking error inside twice the recovery criterion's
 #: tolerance from 10 s after engagement on, or the SMC takes over (``experiments/hybrid_simplex/``).
 DEFAULT_SIMPLEX_DEADLINE_S = 10.0
-#: ``simplex`` box of [V, alpha, beta, p, q, r] (ft/s, rad, rad/s): the states the SMC is shown to recover
-#: from, with a margin: the paper's reset bounds and 256 developed spins of the spin bank (alpha up to
-#: 1.49 rad, |beta| 0.31 rad, |r| 1.92 rad/s), V and alpha up to the envelope's limits.
-DEFAULT_SIMPLEX_BOX_LOW = (V_MIN_FPS, ALPHA_MIN_RAD, -0.35, -2.5, -2.0, -2.2)
-DEFAULT_SIMPLEX_BOX_HIGH = (V_MAX_FPS, 1.5, 0.35, 2.5, 2.0, 2.2)
+#: ``simplex`` box of [V, alpha, beta, p, q, r] (ft/s, rad, rad/s): inside the states the fallback SMC is
+#: shown to recover from (``experiments/hybrid_simplex/box_probe.py``: 4000 states uniform over alpha
+#: -0.5..1.8 rad, |beta| 0.8 rad, |p| 5, |q| 3.5, |r| 3 rad/s, V 100-1500 ft/s, any mu, |gamma| 60 deg; 99.8%
+#: recovered, nominal and randomized aircraft), with a margin; V within the envelope.
+DEFAULT_SIMPLEX_BOX_LOW = (V_MIN_FPS, -0.45, -0.6, -3.0, -3.0, -2.5)
+DEFAULT_SIMPLEX_BOX_HIGH = (V_MAX_FPS, 1.6, 0.6, 3.0, 3.0, 2.5)
 DEFAULT_SIMPLEX_TUBE_RAD = tuple(
     2.0 * t for t in (RECOVERY_ALPHA_TOL_RAD, RECOVERY_BETA_TOL_RAD, RECOVERY_MU_TOL_RAD)
 )
@@ -156,6 +158,7 @@ def default_hybrid_gains(dtype=None) -> HybridGains:
             box_high=jnp.asarray(DEFAULT_SIMPLEX_BOX_HIGH, dtype),
             deadline_s=jnp.asarray(DEFAULT_SIMPLEX_DEADLINE_S, dtype),
             tube_rad=jnp.asarray(DEFAULT_SIMPLEX_TUBE_RAD, dtype),
+            fallback_smc=simplex_fallback_gains(dtype),
         ),
     )
 
@@ -262,6 +265,7 @@ def make_hybrid(
         a = jnp.clip(act(observation(x_wind, reference_rad)), -1.0, 1.0)
         u_rl_raw = action_to_command(a, params.u_min_rad, params.u_max_rad).astype(state.u_prev_rad.dtype)
         u_rl, cap_active = cap_authority(u_rl_raw, params, g.authority_frac)
+        smc_g = g.simplex.fallback_smc if cfg.schedule == "simplex" else g.smc
         simplex = state.simplex
         if cfg.schedule == "simplex":  # decided before u_fb: once latched the SMC flies without the policy
             simplex = simplex_step(
@@ -272,7 +276,7 @@ def make_hybrid(
         u_rl = jnp.where(fallback, 0.0, u_rl)
 
         u_fb, terms = smc_command(
-            x_wind, reference_rad, state.integral_rad_s, params, g.smc, cfg.smc, u_offset_rad=u_rl
+            x_wind, reference_rad, state.integral_rad_s, params, smc_g, cfg.smc, u_offset_rad=u_rl
         )
         zstate, switched = state.zeta, jnp.asarray(False)  # the tube's state moves only under hysteresis
         box_lo, box_hi = limit_box(state.u_prev_rad, params, dt_s)
@@ -305,11 +309,11 @@ def make_hybrid(
         u, limit_active = filter_command(u_raw, state.u_prev_rad, params, dt_s)
         saturated = jnp.any(jnp.clip(u_raw, params.u_min_rad, params.u_max_rad) != u_raw)
         integral_on = jnp.asarray(True) if cfg.schedule == "gated" else zeta > 0
-        integral = update_integral(state.integral_rad_s, terms, saturated, g.smc, cfg.smc, integral_on)
+        integral = update_integral(state.integral_rad_s, terms, saturated, smc_g, cfg.smc, integral_on)
 
         # the certificate of the command that acts, on the controller model (any schedule)
         holds = certificate_holds(
-            terms.decoupling, u, u_rl + u_fb, terms.s, g.smc, g.gate, cfg.smc.switching, dt_s
+            terms.decoupling, u, u_rl + u_fb, terms.s, smc_g, g.gate, cfg.smc.switching, dt_s
         )
         defined = ~terms.solve.guard_active & ~mu_blended & jnp.all(jnp.isfinite(terms.s))
         boxed = jnp.any(limit_active)

@@ -16,6 +16,9 @@ from __future__ import annotations
 import jax.numpy as jnp
 from flax import struct
 
+from harv_jax.control.smc import SMCGains
+from harv_jax.control.smc import default_gains as default_smc_gains
+
 #: A time since the last switch long enough for any dwell: the first step may switch at once.
 NEVER_SWITCHED_S = 1.0e9
 
@@ -95,12 +98,32 @@ class SimplexGains:
         box_low, box_high: [6] box of [V, alpha, beta, p, q, r] (ft/s, rad, rad/s) the policy may fly in.
         deadline_s: from this time on the tracking errors must stay inside ``tube_rad``, s.
         tube_rad: [3] |e_alpha|, |e_beta|, |e_mu| allowed from the deadline on, rad.
+        fallback_smc: SMCGains of the SMC that flies after the hand-over (``simplex_fallback_gains``).
     """
 
     box_low: jnp.ndarray
     box_high: jnp.ndarray
     deadline_s: jnp.ndarray
     tube_rad: jnp.ndarray
+    fallback_smc: SMCGains
+
+
+#: SMC gains of the ``simplex`` fallback that differ from ``smc.default_gains``: the "soft" corner of the
+#: Pareto study (``experiments/hybrid_pareto/``: on its control-TV front, 100% recovered, slower than the
+#: default). After a hand-over the SMC must recover, not race: with the ``fast`` policy these gains cut the
+#: hybrid's control TV by ~0.8 rad against the default gains (``experiments/hybrid_simplex/README.md``).
+SIMPLEX_FALLBACK_SMC: dict[str, float] = {
+    "lambda1_ps": 3.0,
+    "k_reach": 0.25,
+    "eps_radps2": 0.1,
+    "phi_radps": 0.4,
+}
+
+
+def simplex_fallback_gains(dtype=None) -> SMCGains:
+    """The ``simplex`` fallback's SMC gains: ``smc.default_gains`` with ``SIMPLEX_FALLBACK_SMC``."""
+    g = default_smc_gains(dtype)
+    return g.replace(**{k: jnp.full_like(getattr(g, k), v) for k, v in SIMPLEX_FALLBACK_SMC.items()})
 
 
 @struct.dataclass
