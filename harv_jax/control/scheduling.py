@@ -111,7 +111,7 @@ class SimplexGains:
 #: SMC gains of the ``simplex`` fallback that differ from ``smc.default_gains``: the "soft" corner of the
 #: Pareto study (``experiments/hybrid_pareto/``: on its control-TV front, 100% recovered, slower than the
 #: default). After a hand-over the SMC must recover, not race: with the ``fast`` policy these gains cut the
-#: hybrid's control TV by ~0.8 rad against the default gains (``experiments/hybrid_simplex/README.md``).
+#: hybrid's control TV by 0.5-0.8 rad against the default gains (``experiments/hybrid_simplex/README.md``).
 SIMPLEX_FALLBACK_SMC: dict[str, float] = {
     "lambda1_ps": 3.0,
     "k_reach": 0.25,
