@@ -118,6 +118,16 @@ def test_hand_over_at_engagement_flies_the_smc():
     np.testing.assert_allclose(r_h.traj.x_wind[:, 1:9], r_s.traj.x_wind[:, 1:9], atol=1e-5)
 
 
+def test_after_a_hand_over_the_certificate_holds_for_the_fallback_smc():
+    """The fallback SMC's own unclipped commands meet the reaching condition of its gains (eta = its eps):
+    the certificate logged by the simplex hybrid is the fallback's, not the default SMC's (eta 0.2 > 0.1)."""
+    gains = _gains(deadline_s=0.0, tube_rad=(0.0, 0.0, 0.0))
+    info = _fly_simplex(_weights(1), gains, _nominal(), X0, SPIN_DELTA0).traj.info
+    defined, holds = np.asarray(info["cert_free_defined"]), np.asarray(info["cert_free_holds"])
+    assert defined.sum() > 100  # unclipped steps in the sliding mode exist on this flight
+    assert np.all(holds[defined])
+
+
 def test_deadline_hands_over_for_good_and_the_rest_is_the_smc_from_there():
     params = _nominal()
     k = 200  # deadline 2 s with a tube no state meets: the hand-over is at step 200 exactly

@@ -311,9 +311,11 @@ def make_hybrid(
         integral_on = jnp.asarray(True) if cfg.schedule == "gated" else zeta > 0
         integral = update_integral(state.integral_rad_s, terms, saturated, smc_g, cfg.smc, integral_on)
 
-        # the certificate of the command that acts, on the controller model (any schedule)
+        # the certificate of the command that acts, on the controller model (any schedule); simplex: for the
+        # fallback SMC's own reaching law (its eps and boundary layer), the one that acts after a hand-over
+        cert_gate = default_gate_gains(smc_g) if cfg.schedule == "simplex" else g.gate
         holds = certificate_holds(
-            terms.decoupling, u, u_rl + u_fb, terms.s, smc_g, g.gate, cfg.smc.switching, dt_s
+            terms.decoupling, u, u_rl + u_fb, terms.s, smc_g, cert_gate, cfg.smc.switching, dt_s
         )
         defined = ~terms.solve.guard_active & ~mu_blended & jnp.all(jnp.isfinite(terms.s))
         boxed = jnp.any(limit_active)
