@@ -156,23 +156,60 @@ def test_box_and_nonfinite_commands_hand_over_with_their_reason():
     assert bool(jnp.all(jnp.isfinite(r_nan.traj.delta_rad))) and not bool(r_nan.nonfinite)
 
 
+FAST, CALM = jnp.asarray(600.0), jnp.asarray(0.1)  # ft/s, rad/s: not held
+
+
 def test_simplex_step_by_hand():
     g = _gains(deadline_s=0.05, tube_rad=(0.1, 0.1, 0.1)).simplex
     s, t = simplex_init(jnp.float32), jnp.asarray(True)
     inside, outside = jnp.array([0.05, 0.0, -0.05]), jnp.array([0.05, 0.2, 0.0])
     for _ in range(5):  # before the deadline, outside the tube is allowed
-        s = simplex_step(s, jnp.asarray(False), outside, t, g, DT)
+        s = simplex_step(s, jnp.asarray(False), outside, t, g, DT, FAST, CALM)
     assert not bool(s.latched)
-    s = simplex_step(s, jnp.asarray(False), inside, t, g, DT)  # at the deadline, inside: still the policy
+    s = simplex_step(s, jnp.asarray(False), inside, t, g, DT, FAST, CALM)  # at the deadline, inside
     assert not bool(s.latched)
-    s = simplex_step(s, jnp.asarray(False), outside, t, g, DT)
+    s = simplex_step(s, jnp.asarray(False), outside, t, g, DT, FAST, CALM)
     assert bool(s.latched) and int(s.reason) == SIMPLEX_REASONS.index("deadline")
     s = simplex_step(
-        s, jnp.asarray(True), inside, jnp.asarray(False), g, DT
+        s, jnp.asarray(True), inside, jnp.asarray(False), g, DT, FAST, CALM
     )  # latched for good, first reason kept
     assert bool(s.latched) and int(s.reason) == SIMPLEX_REASONS.index("deadline")
-    nan_err = simplex_step(simplex_init(jnp.float32), jnp.asarray(False), jnp.full((3,), jnp.nan), t, g, DT)
+    nan_err = simplex_step(
+        simplex_init(jnp.float32), jnp.asarray(False), jnp.full((3,), jnp.nan), t, g, DT, FAST, CALM
+    )
     assert not bool(nan_err.latched)  # before the deadline a non-finite error alone does not trip
+
+
+def test_simplex_deadline_held_while_slow_and_calm():
+    """Slow (V < hold speed) and calm (||omega|| < hold rate): the deadline waits until hold_until_s; fast, or
+    rotating, or after hold_until_s it trips; the box trips while held."""
+    g = _gains(deadline_s=0.05, tube_rad=(0.1, 0.1, 0.1)).simplex
+    g = g.replace(hold_speed_fps=jnp.asarray(250.0), hold_rate_radps=jnp.asarray(0.5))
+    g = g.replace(hold_until_s=jnp.asarray(0.2))
+    outside, t, f = jnp.array([0.05, 0.2, 0.0]), jnp.asarray(True), jnp.asarray(False)
+    slow, fast, calm, rotating = jnp.asarray(240.0), jnp.asarray(260.0), jnp.asarray(0.4), jnp.asarray(0.6)
+
+    def after(n, speed, rate, box=f):
+        s = simplex_init(jnp.float32)
+        for _ in range(n):
+            s = simplex_step(s, box, outside, t, g, DT, speed, rate)
+        return s
+
+    assert not bool(after(20, slow, calm).latched)  # t = 0 ... 0.19 s: held past the 0.05 s deadline
+    held_out = after(21, slow, calm)  # the step at 0.2 s: the hold is over
+    assert bool(held_out.latched) and int(held_out.reason) == SIMPLEX_REASONS.index("deadline")
+    for speed, rate in ((fast, calm), (slow, rotating), (jnp.asarray(jnp.nan), calm)):
+        s = after(6, speed, rate)  # trips at the deadline, as without a hold
+        assert bool(s.latched) and int(s.reason) == SIMPLEX_REASONS.index("deadline")
+        assert not bool(after(5, speed, rate).latched)
+    boxed = after(1, slow, calm, box=jnp.asarray(True))
+    assert bool(boxed.latched) and int(boxed.reason) == SIMPLEX_REASONS.index("box")
+
+
+def test_default_simplex_hold():
+    g = default_hybrid_gains().simplex
+    assert float(g.hold_speed_fps) == 250.0 and float(g.hold_rate_radps) == 0.5
+    assert float(g.hold_until_s) == 30.0 and float(g.deadline_s) == 10.0
 
 
 @chex.assert_max_traces(n=1)

@@ -99,6 +99,9 @@ class SimplexGains:
         deadline_s: from this time on the tracking errors must stay inside ``tube_rad``, s.
         tube_rad: [3] |e_alpha|, |e_beta|, |e_mu| allowed from the deadline on, rad.
         fallback_smc: SMCGains of the SMC that flies after the hand-over (``simplex_fallback_gains``).
+        hold_speed_fps, hold_rate_radps, hold_until_s: the deadline does not trip while V < hold_speed_fps
+            and ||omega|| < hold_rate_radps, before hold_until_s (slow and calm: the SMC has no more authority
+            there than the policy; 0 ft/s: never held). The box trips as ever.
     """
 
     box_low: jnp.ndarray
@@ -106,6 +109,9 @@ class SimplexGains:
     deadline_s: jnp.ndarray
     tube_rad: jnp.ndarray
     fallback_smc: SMCGains
+    hold_speed_fps: jnp.ndarray
+    hold_rate_radps: jnp.ndarray
+    hold_until_s: jnp.ndarray
 
 
 #: SMC gains of the ``simplex`` fallback that differ from ``smc.default_gains``: the "soft" corner of the
@@ -159,16 +165,23 @@ def simplex_step(
     command_finite: jnp.ndarray,
     gains: SimplexGains,
     dt_s: float,
+    speed_fps: jnp.ndarray,
+    rate_radps: jnp.ndarray,
 ) -> SimplexState:
     """One step of the ``simplex`` schedule: zeta = 0 (the policy acts alone) until the first step on which
     the state is outside the box (``outside_box``), the policy's command is non-finite, or, from
-    ``deadline_s`` on, a tracking error is outside ``tube_rad``; from then on zeta = 1 (the SMC) for good.
+    ``deadline_s`` on, a tracking error is outside ``tube_rad`` while the aircraft is not held (slow and calm:
+    ``speed_fps`` < ``hold_speed_fps`` and ``rate_radps`` = ||omega|| < ``hold_rate_radps``, before
+    ``hold_until_s``); from then on zeta = 1 (the SMC) for good.
 
     Returns:
         the new state, whose ``latched`` is zeta for this step.
     """
     outside_tube = ~jnp.all(jnp.abs(e_rad) < gains.tube_rad)  # a non-finite error counts as outside
+    held = (speed_fps < gains.hold_speed_fps) & (rate_radps < gains.hold_rate_radps)
+    held = held & (state.time_s < gains.hold_until_s - 0.5 * dt_s)
     late = (state.time_s >= gains.deadline_s - 0.5 * dt_s) & outside_tube  # half a step: float sums
+    late = late & ~held
     why = jnp.where(outside_box, 1, jnp.where(~command_finite, 3, jnp.where(late, 2, 0))).astype(jnp.int32)
     enter = ~state.latched & (why > 0)
     return SimplexState(
