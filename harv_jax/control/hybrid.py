@@ -138,8 +138,8 @@ DEFAULT_SIMPLEX_BOX_LOW = (V_MIN_FPS, -0.45, -0.6, -3.0, -3.0, -2.5)
 DEFAULT_SIMPLEX_BOX_HIGH = (V_MAX_FPS, 1.6, 0.6, 3.0, 3.0, 2.5)
 #: ``simplex`` deadline hold: below 250 ft/s with ||omega|| < 0.5 rad/s the deadline waits, until 30 s after
 #: engagement (the box still trips). There the fast policy rides out the bottom of its braking (~130 ft/s,
-#: errors just outside the tube, rates small), where the SMC saturates every surface: a hand-over cost 4.6 rad
-#: of TV against the policy's 1.9 (Monte Carlo key 123; ``experiments/hybrid_simplex/README.md``).
+#: errors just outside the tube, rates small), where the SMC has little authority: after such a hand-over it
+#: spent 4.9 rad of TV where the policy spent 1.9 (Monte Carlo key 123, ``experiments/hybrid_simplex/``).
 DEFAULT_SIMPLEX_HOLD_SPEED_FPS = 250.0
 DEFAULT_SIMPLEX_HOLD_RATE_RADPS = 0.5
 DEFAULT_SIMPLEX_HOLD_UNTIL_S = 30.0
