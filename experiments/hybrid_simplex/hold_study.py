@@ -25,11 +25,11 @@ import numpy as np
 from harv_jax.aircraft.params import harv
 from harv_jax.control.hybrid import HybridConfig, HybridGains, default_hybrid_gains, make_hybrid
 from harv_jax.control.registry import ControllerOptions, build_controller
-from harv_jax.dynamics.state import RATES, WIND_INDEX
+from harv_jax.dynamics.state import vt_fps
 from harv_jax.evaluation.closed_loop import closed_loop
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, simplex_summary
 from harv_jax.policy import resolve_policy
-from harv_jax.task.criteria import tracking_errors
+from harv_jax.task.criteria import omega_norm_radps, tracking_errors
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 N_STEPS = 6000
@@ -69,9 +69,8 @@ def _stats(out) -> dict:
         "tv_p50_rad": float(np.median(tv)), "t_rec_p50_s": float(np.median(t)),
         "t_rec_p95_s": float(np.percentile(t, 95)),
     }  # fmt: skip
-    if "handover_box" in out.info_means:
-        for r in ("box", "deadline"):
-            res[f"handover_{r}_runs"] = float(np.mean(np.asarray(out.info_means[f"handover_{r}"]) > 0))
+    handed = simplex_summary(out.info_means).get("handover_run_fraction", {})
+    res.update({f"handover_{r}_runs": handed[r] for r in ("box", "deadline") if r in handed})
     return res
 
 
@@ -115,8 +114,8 @@ def main() -> None:
             err = np.abs(np.asarray(jax.vmap(tracking_errors, (0, None))(jnp.asarray(x), ref))) * 180 / np.pi
             at_handover = {
                 "t_s_p10_p50_p90": np.percentile(k_ho * DT_S, [10, 50, 90]).tolist(),
-                "V_fps_p10_p50_p90": np.percentile(x[:, WIND_INDEX["V"]], [10, 50, 90]).tolist(),
-                "omega_radps_p50_p90": np.percentile(np.linalg.norm(x[:, RATES], axis=1), [50, 90]).tolist(),
+                "V_fps_p10_p50_p90": np.percentile(vt_fps(x), [10, 50, 90]).tolist(),
+                "omega_radps_p50_p90": np.percentile(omega_norm_radps(x), [50, 90]).tolist(),
                 "abs_error_deg_p50": np.median(err, axis=0).tolist(),
                 "abs_error_deg_p90": np.percentile(err, 90, axis=0).tolist(),
             }

@@ -69,8 +69,8 @@ from harv_jax.control.supervisor import (
     supervise,
     supervisor_init,
 )
-from harv_jax.dynamics.state import RATES, WIND_INDEX
-from harv_jax.task.criteria import tracking_errors
+from harv_jax.dynamics.state import vt_fps
+from harv_jax.task.criteria import omega_norm_radps, tracking_errors
 from harv_jax.task.spaces import action_to_command, observation
 from harv_jax.task.spec import (
     RECOVERY_ALPHA_TOL_RAD,
@@ -283,7 +283,7 @@ def make_hybrid(
             simplex = simplex_step(
                 simplex, outside_box(x_wind, g.simplex.box_low, g.simplex.box_high),
                 tracking_errors(x_wind, reference_rad), jnp.all(jnp.isfinite(u_rl)), g.simplex, dt_s,
-                x_wind[WIND_INDEX["V"]], jnp.linalg.norm(x_wind[RATES]),
+                vt_fps(x_wind), omega_norm_radps(x_wind),
             )  # fmt: skip
             fallback = fallback | simplex.latched
         u_rl = jnp.where(fallback, 0.0, u_rl)
