@@ -30,7 +30,7 @@ from jax.sharding import Mesh
 
 from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo import normalize as obs_norm
-from harv_jax.ppo import sharding
+from harv_jax.ppo import sharding, shuffle
 from harv_jax.ppo.acting import (
     EpisodeMetricsFn,
     default_episode_metrics,
@@ -260,7 +260,7 @@ def make_train(
         data = jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1).reshape((n_batch,) + x.shape[2:]), data)
 
         def epoch(carry: tuple, key: jax.Array) -> tuple[tuple, Metrics]:
-            perm = jax.random.permutation(key, n_batch)
+            perm = shuffle.permutation(key, n_batch)  # = jax.random.permutation, faster
             shuffled = jax.tree.map(
                 lambda x: jnp.take(x, perm, axis=0).reshape((cfg.minibatches, mb_size) + x.shape[1:]), data
             )
