@@ -24,6 +24,7 @@ import jax.numpy as jnp
 from harv_jax.aircraft.aero import coefficients
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.dynamics.atmosphere import density_and_thrust_lapse
+from harv_jax.dynamics.fusion import airflow_angles, evaluated_once
 from harv_jax.dynamics.state import RATES, WIND_INDEX, BodyState, check_shape
 
 #: Airspeed floor for the non-dimensional rates p b / (2V) etc., ft/s (guards V -> 0 only).
@@ -124,23 +125,12 @@ def wind_trig(
     """(sin, cos) of alpha, beta, mu, gamma, in that order (8 values), each evaluated once.
 
     XLA's CPU fusion otherwise copies a sine or cosine into every fusion that reads it (the SMC's Lie
-    terms evaluated ~130 sines and cosines per aircraft instead of 8). A loop is a fusion boundary that
-    XLA keeps (``optimization_barrier`` is removed before fusion on the CPU): the values are computed in
-    a ``while_loop`` that runs once, with a trip count XLA cannot fold. The derivative rule reuses the
-    values instead of creating new trigonometric ops.
+    terms evaluated ~130 sines and cosines per aircraft instead of 8): they are computed in a one-trip loop
+    (:func:`harv_jax.dynamics.fusion.evaluated_once`). The derivative rule reuses the values instead of
+    creating new trigonometric ops.
     """
     angles = jnp.stack([alpha, beta, mu, gamma])
-    if jax.default_backend() != "cpu":  # (an accelerator evaluates a loop condition on the host: no loop)
-        return tuple(f(angles[k]) for k in range(4) for f in (jnp.sin, jnp.cos))
-    once = 1 + (angles[0] * 0.0 > 1.0).astype(jnp.int32)  # = 1 (also for NaN); opaque to XLA
-
-    def body(carry):
-        i, _ = carry
-        return i + 1, jnp.stack([jnp.sin(angles), jnp.cos(angles)], axis=-1)
-
-    _, sc = jax.lax.while_loop(
-        lambda c: c[0] < once, body, (jnp.zeros((), jnp.int32), jnp.zeros((4, 2), angles.dtype))
-    )
+    sc = evaluated_once(lambda a: jnp.stack([jnp.sin(a), jnp.cos(a)], axis=-1), angles)
     return tuple(sc[k, j] for k in range(4) for j in range(2))
 
 
@@ -237,7 +227,7 @@ def body_derivatives(
     vt_safe = jnp.where(vt > 0, vt, 1.0)
     ca, sa = jnp.where(uw > 0, ua / uw_safe, 1.0), wa / uw_safe  # cos, sin alpha
     cb, sb = jnp.where(vt > 0, uw / vt_safe, 1.0), va / vt_safe  # cos, sin beta
-    alpha, beta = jnp.arctan2(wa, ua), jnp.arctan2(va, uw)
+    alpha, beta = airflow_angles(wa, ua, va, uw)  # arctan2 of both (vectorized on the CPU in float32)
     fm = forces_moments(vt, alpha, beta, pqr, h, u, params, alpha_in_range=True)  # (an arctan2)
     m, g = params.mass_slug, params.g
     L, D, Y = fm.L, fm.D, fm.Y

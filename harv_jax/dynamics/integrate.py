@@ -7,6 +7,7 @@ import jax.numpy as jnp
 
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.dynamics.eom import body_derivatives, derivatives
+from harv_jax.dynamics.fusion import evaluated_once
 from harv_jax.dynamics.state import WIND_INDEX, BodyState, check_shape, from_wind, to_wind
 
 
@@ -32,7 +33,8 @@ def rk4_body_step(
     k1 = f(state)
     k2 = f(_axpy(0.5 * dt_s, k1, state))
     k3 = f(_axpy(0.5 * dt_s, k2, state))
-    k4 = f(_axpy(dt_s, k3, state))
+    # (materialized before the sum: fused into it, the stage ran once per [3] component, unvectorized)
+    k4 = evaluated_once(f, _axpy(dt_s, k3, state))
     incr = jax.tree.map(lambda a, b, c, d: (a + 2.0 * b + 2.0 * c + d) * (dt_s / 6.0), k1, k2, k3, k4)
     new = jax.tree.map(jnp.add, state, incr)
     return new.replace(quat=new.quat / jnp.linalg.norm(new.quat))

@@ -1,0 +1,111 @@
+"""harv_jax.dynamics.fusion: the float32 arctan2, the one-trip loop and what they do to the plant step."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from harv_jax.aircraft import harv
+from harv_jax.dynamics import body_derivatives, from_wind, rk4_body_step
+from harv_jax.dynamics.fusion import airflow_angles, atan2_f32, evaluated_once
+
+X0_WIND = jnp.array([600.0, 0.5, -0.1, 0.7, -0.3, 0.2, 0.4, -0.2, 1.0, 25000.0])
+U_RAD = jnp.array([-0.1, 0.05, 0.02])
+
+
+def test_atan2_f32_within_3_ulp() -> None:
+    rng = np.random.default_rng(0)
+    n = 500_000
+    y = (rng.standard_normal(n) * 10.0 ** rng.uniform(-6, 6, n)).astype(np.float32)
+    x = (rng.standard_normal(n) * 10.0 ** rng.uniform(-6, 6, n)).astype(np.float32)
+    exact = np.arctan2(y.astype(np.float64), x.astype(np.float64))
+    got = np.asarray(jax.jit(atan2_f32)(y, x)).astype(np.float64)
+    ulp = np.spacing(np.abs(exact).astype(np.float32)).astype(np.float64)
+    assert np.max(np.abs(got - exact) / ulp) <= 3.5
+
+
+def test_atan2_f32_special_values() -> None:
+    special = np.array([0.0, -0.0, 1.0, -1.0, 1e-30, -1e30, np.inf, -np.inf, np.nan], np.float32)
+    y, x = (a.ravel() for a in np.meshgrid(special, special))
+    got = np.asarray(jax.jit(atan2_f32)(y, x))
+    expected = np.arctan2(y, x)
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(expected))
+    ok = ~np.isnan(expected)
+    np.testing.assert_allclose(got[ok], expected[ok], rtol=4e-7, atol=0)
+    np.testing.assert_array_equal(np.signbit(got[ok]), np.signbit(expected[ok]))  # signed zeros
+
+
+def test_airflow_angles_exact_in_float64(x64) -> None:
+    w, u, v = jnp.array([0.3, -2.0]), jnp.array([-1.0, 5.0]), jnp.array([0.7, 0.1])
+    uw = jnp.sqrt(u * u + w * w)
+    alpha, beta = airflow_angles(w, u, v, uw)
+    np.testing.assert_array_equal(np.asarray(alpha), np.arctan2(np.asarray(w), np.asarray(u)))
+    np.testing.assert_array_equal(np.asarray(beta), np.arctan2(np.asarray(v), np.asarray(uw)))
+
+
+def test_evaluated_once_value_and_derivatives() -> None:
+    def fn(x: jax.Array) -> jax.Array:
+        return jnp.stack([jnp.sin(x[0]) * x[1], jnp.exp(x[1]) - x[0] ** 2])
+
+    x = jnp.array([0.3, -0.8])
+    np.testing.assert_allclose(jax.jit(lambda v: evaluated_once(fn, v))(x), fn(x), rtol=1e-6)
+    batch = jnp.stack([x, -x, 2 * x])
+    np.testing.assert_allclose(jax.jit(jax.vmap(lambda v: evaluated_once(fn, v)))(batch), jax.vmap(fn)(batch),
+                               rtol=1e-6)  # fmt: skip
+    np.testing.assert_allclose(jax.jacfwd(lambda v: evaluated_once(fn, v))(x), jax.jacfwd(fn)(x), rtol=1e-6)
+    np.testing.assert_allclose(jax.jacrev(lambda v: evaluated_once(fn, v))(x), jax.jacrev(fn)(x), rtol=1e-6)
+
+
+def test_plant_derivatives_through_the_loops() -> None:
+    """Reverse mode through the RK4 step (a plain while_loop would refuse it) agrees with forward mode."""
+    params = harv()
+    state = from_wind(X0_WIND)
+
+    def loss(u: jax.Array) -> jax.Array:
+        new = rk4_body_step(state, u, params, 0.01)
+        return jnp.sum(new.pqr_radps**2) + 1e-3 * jnp.sum(body_derivatives(new, u, params).uvw_fps)
+
+    grad = jax.jit(jax.grad(loss))(U_RAD)
+    direction = jnp.array([0.3, -0.5, 0.8])
+    _, along = jax.jvp(loss, (U_RAD,), (direction,))
+    assert np.all(np.isfinite(np.asarray(grad)))
+    np.testing.assert_allclose(float(jnp.dot(grad, direction)), float(along), rtol=1e-4)
+
+
+def test_plant_step_keeps_its_loops_on_cpu() -> None:
+    params = harv()
+    state = from_wind(X0_WIND)
+    hlo = jax.jit(lambda s: rk4_body_step(s, U_RAD, params, 0.01)).lower(state).compile().as_text()
+    assert hlo.count(" while(") >= 5  # four stages' arctan2 pairs and the fourth stage
+
+
+@pytest.mark.skipif(jax.default_backend() != "cpu", reason="the loops exist on the CPU only")
+def test_sharded_plant_step_needs_no_collectives() -> None:
+    """Over two host devices, the loops' trip count is a constant: no all-reduce per loop."""
+    code = textwrap.dedent(
+        """
+        import jax, jax.numpy as jnp, numpy as np
+        from jax.sharding import Mesh, NamedSharding, PartitionSpec
+        from harv_jax.aircraft import harv
+        from harv_jax.dynamics import from_wind, rk4_body_step
+        x0 = jnp.tile(jnp.array([600.0, 0.5, -0.1, 0.7, -0.3, 0.2, 0.4, -0.2, 1.0, 25000.0]), (8, 1))
+        states = jax.vmap(from_wind)(x0)
+        sharding = NamedSharding(Mesh(np.array(jax.devices()), ("a",)), PartitionSpec("a"))
+        states = jax.device_put(states, sharding)
+        step = jax.jit(jax.vmap(lambda s: rk4_body_step(s, jnp.zeros(3), harv(), 0.01)))
+        hlo = step.lower(states).compile().as_text()
+        print(len(jax.devices()), hlo.count(" while("), hlo.count("all-reduce("))
+        """
+    )
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2", JAX_PLATFORMS="cpu")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    devices, loops, all_reduces = (int(v) for v in out.stdout.split())
+    assert devices == 2 and loops >= 5
+    assert all_reduces == 0
