@@ -11,9 +11,11 @@ stack, evaluated there once per component with the 3 components on the fast axis
 - :func:`airflow_angles`: alpha and beta from the air-relative velocity; in float32 on the CPU a
   vectorized ``arctan2`` (:func:`atan2_f32`, Cephes ``atanf``, <= 3 ulp) computed once per stage.
 
-Float64 and accelerators keep ``jnp.arctan2`` and no loops. Measured on the 2-core AVX-512 EPYC, 1,024
-aircraft on one XLA device, actuator + RK4 step, variants interleaved in one process
-(``benchmarks/bench_dynamics.py``'s fleet): 1.3x from the stage-4 barrier, 1.4-1.5x with both.
+Float64 and accelerators keep ``jnp.arctan2`` and no loops. Measured on the 2-core AVX-512 EPYC,
+``benchmarks/bench_dynamics.py``'s fleet sharded over two XLA host devices, actuator + RK4 step, the old
+and new step alternated in one process: 1.42x / 1.57x / 1.66x at 256 / 1,024 / 4,096 aircraft (either tool
+alone: 0.9-1.4x). Values equal the plain step's to float32 rounding: after 100 steps of 1,024 tumbling
+aircraft, 2e-5 relative at most with the loop alone, 2e-4 with the arctan2 (its last bits, amplified).
 """
 
 from __future__ import annotations
