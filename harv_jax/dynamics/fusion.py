@@ -47,6 +47,8 @@ def opaque_one() -> jax.Array:
 def evaluated_once(fn: Callable[[Any], Any], x: Any) -> Any:
     """``fn(x)``, evaluated inside a one-trip ``while_loop`` on the CPU (a fusion boundary), else plainly.
 
+    (No loop on an accelerator: it would evaluate the loop condition on the host.)
+
     Args:
         fn: a pure function of one pytree (it may close over traced values).
         x: its argument (a pytree of arrays).
