@@ -1,21 +1,18 @@
 """Shapes of the plant step that XLA's CPU backend compiles well (values unchanged up to float32 rounding).
 
-XLA's CPU fusion copies cheap elementwise producers into every consumer fusion. In the RK4 step that cost
-more than the arithmetic: the fourth stage's derivative was fused into the final RK4 sum of each [N, 3]
-stack, evaluated there once per component with the 3 components on the fast axis (not vectorized); and
-``arctan2`` is a scalar library call (~10 ns per element). Two tools:
+XLA's CPU fusion copies cheap elementwise producers into every consumer fusion, and ``arctan2`` is a scalar
+library call (~10 ns per element). Two tools:
 
 - :func:`evaluated_once`: ``fn(x)`` computed in a ``while_loop`` that runs once. A loop is a fusion
   boundary XLA keeps (``optimization_barrier`` is removed before fusion on the CPU), so ``fn``'s outputs are
   materialized once. A custom JVP differentiates ``fn`` itself (forward and reverse mode work).
-- :func:`airflow_angles`: alpha and beta from the air-relative velocity; in float32 on the CPU a
-  vectorized ``arctan2`` (:func:`atan2_f32`, Cephes ``atanf``, <= 3 ulp) computed once per stage.
+- :func:`atan2` / :func:`airflow_angles`: in float32 on the CPU a vectorized ``arctan2`` (:func:`atan2_f32`,
+  Cephes ``atanf``, <= 3.1 ulp); in the RK4 stages alpha and beta are computed once per stage in such a loop
+  (without it XLA copied the polynomial into the 33-column table interpolation).
 
-Float64 and accelerators keep ``jnp.arctan2`` and no loops. Measured on the 2-core AVX-512 EPYC,
-``benchmarks/bench_dynamics.py``'s fleet sharded over two XLA host devices, actuator + RK4 step, the old
-and new step alternated in one process: 1.42x / 1.57x / 1.66x at 256 / 1,024 / 4,096 aircraft (either tool
-alone: 0.9-1.4x). Values equal the plain step's to float32 rounding: after 100 steps of 1,024 tumbling
-aircraft, 2e-5 relative at most with the loop alone, 2e-4 with the arctan2 (its last bits, amplified).
+Float64 and accelerators keep ``jnp.arctan2`` and no loops. Values equal the plain step's to float32
+rounding: after 100 steps of 1,024 tumbling aircraft, 2e-4 relative at most (the arctan2's last bits,
+amplified). The speed-ups, measured side by side, are in the README ("Plant step").
 """
 
 from __future__ import annotations
@@ -99,6 +96,13 @@ def atan2_f32(y: jax.Array, x: jax.Array) -> jax.Array:
     a = jnp.where(jnp.signbit(x), np.float32(np.pi) - a, a)
     a = jnp.where(jnp.isnan(x) | jnp.isnan(y), jnp.nan, a)
     return jnp.where(jnp.signbit(y), -a, a)
+
+
+def atan2(y: jax.Array, x: jax.Array) -> jax.Array:
+    """``arctan2(y, x)``: :func:`atan2_f32` in float32 on the CPU (vectorized), else ``jnp.arctan2``."""
+    if _on_cpu() and jnp.result_type(y, x) == jnp.float32:
+        return atan2_f32(y, x)
+    return jnp.arctan2(y, x)
 
 
 def airflow_angles(wa: jax.Array, ua: jax.Array, va: jax.Array, uw: jax.Array) -> tuple[jax.Array, jax.Array]:

@@ -7,12 +7,21 @@ import jax.numpy as jnp
 
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.dynamics.eom import body_derivatives, derivatives
-from harv_jax.dynamics.fusion import evaluated_once
 from harv_jax.dynamics.state import WIND_INDEX, BodyState, check_shape, from_wind, to_wind
 
 
 def _axpy(a, x: BodyState, y: BodyState) -> BodyState:
     return jax.tree.map(lambda xi, yi: yi + a * xi, x, y)
+
+
+def _restacked(state: BodyState) -> BodyState:
+    """The state rebuilt from its components (equal values).
+
+    Vmapped, a ``[N, k]`` leaf is stored aircraft-major while XLA stores the stacked derivatives
+    component-major. The stages added the two through a transpose inside every fusion that read a stage's
+    input. Rebuilt by a stack, the state gets the derivatives' layout once per step (a fusion XLA keeps).
+    """
+    return jax.tree.map(lambda leaf: jnp.stack([leaf[i] for i in range(leaf.shape[0])]), state)
 
 
 def rk4_body_step(
@@ -30,11 +39,11 @@ def rk4_body_step(
     def f(s):
         return body_derivatives(s, u, params, wind_body_fps)
 
+    state = _restacked(state)
     k1 = f(state)
     k2 = f(_axpy(0.5 * dt_s, k1, state))
     k3 = f(_axpy(0.5 * dt_s, k2, state))
-    # (materialized before the sum: fused into it, the stage ran once per [3] component, unvectorized)
-    k4 = evaluated_once(f, _axpy(dt_s, k3, state))
+    k4 = f(_axpy(dt_s, k3, state))
     incr = jax.tree.map(lambda a, b, c, d: (a + 2.0 * b + 2.0 * c + d) * (dt_s / 6.0), k1, k2, k3, k4)
     new = jax.tree.map(jnp.add, state, incr)
     return new.replace(quat=new.quat / jnp.linalg.norm(new.quat))

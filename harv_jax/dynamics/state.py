@@ -25,10 +25,10 @@ rotation (mu = atan2(C[1,2], C[2,2]), chi = atan2(v_E, v_N)), which may be arbit
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import jax.numpy as jnp
 from flax import struct
+
+from harv_jax.dynamics.fusion import atan2
 
 #: Names of the wind-axis state components, in order.
 WIND_STATE_NAMES: tuple[str, ...] = (
@@ -97,23 +97,6 @@ class BodyState:
     pqr_radps: jnp.ndarray  # [3]
     quat: jnp.ndarray  # [4], scalar first, body -> NED
     pos_ft: jnp.ndarray  # [3] = [x_N, y_E, h]
-
-
-class AirData(NamedTuple):
-    """Airspeed and aerodynamic angles of a body-axis velocity."""
-
-    vt_fps: jnp.ndarray
-    alpha_rad: jnp.ndarray
-    beta_rad: jnp.ndarray
-
-
-def air_data(uvw_fps: jnp.ndarray) -> AirData:
-    """V, alpha = atan2(w, u) in (-pi, pi], beta = asin(v / V) from a body velocity [3]."""
-    u, v, w = uvw_fps[0], uvw_fps[1], uvw_fps[2]
-    vt = jnp.sqrt(u * u + v * v + w * w)
-    alpha = jnp.arctan2(w, u)
-    beta = jnp.arcsin(jnp.clip(v / jnp.where(vt > 0, vt, 1.0), -1.0, 1.0))
-    return AirData(vt, alpha, beta)
 
 
 def dcm_wind_from_body(alpha: jnp.ndarray, beta: jnp.ndarray) -> jnp.ndarray:
@@ -202,14 +185,28 @@ def from_wind(x: jnp.ndarray) -> BodyState:
 
 
 def to_wind(state: BodyState) -> jnp.ndarray:
-    """BodyState -> wind-axis state [10] (inertial velocity; see module docstring at gamma=+-90)."""
-    vt, alpha, beta = air_data(state.uvw_fps)
+    """BodyState -> wind-axis state [10] (inertial velocity; see module docstring at gamma=+-90).
+
+    alpha = atan2(w, u), beta = atan2(v, sqrt(u^2 + w^2)) (= asin(v / V)); the direction cosines of alpha
+    and beta are ratios of the velocity's components, not sines and cosines of the angles. Its five
+    ``arctan2`` are :func:`harv_jax.dynamics.fusion.atan2` (vectorized in float32 on the CPU, where the
+    library's ``arctan2`` is a scalar call per element).
+    """
+    u, v, w = state.uvw_fps[0], state.uvw_fps[1], state.uvw_fps[2]
+    uw2 = u * u + w * w
+    uw, vt = jnp.sqrt(uw2), jnp.sqrt(uw2 + v * v)
+    alpha, beta = atan2(w, u), atan2(v, uw)
+    uw_safe, vt_safe = jnp.where(uw > 0, uw, 1.0), jnp.where(vt > 0, vt, 1.0)
+    ca, sa = jnp.where(uw > 0, u / uw_safe, 1.0), w / uw_safe
+    cb, sb = jnp.where(vt > 0, uw / vt_safe, 1.0), v / vt_safe
     c_nb = quat_to_dcm(state.quat)
     v_ned = c_nb @ state.uvw_fps
-    gamma = jnp.arctan2(-v_ned[2], jnp.hypot(v_ned[0], v_ned[1]))
-    chi = jnp.arctan2(v_ned[1], v_ned[0])
-    c_wn = dcm_wind_from_body(alpha, beta) @ c_nb.T
-    mu = jnp.arctan2(c_wn[1, 2], c_wn[2, 2])
+    gamma = atan2(-v_ned[2], jnp.hypot(v_ned[0], v_ned[1]))
+    chi = atan2(v_ned[1], v_ned[0])
+    # C_wn = C_wb C_bn; mu needs C_wn[1, 2] and C_wn[2, 2]: rows 2 and 3 of C_wb (dcm_wind_from_body) times
+    # the third column of C_bn = C_nb^T, the third row of C_nb
+    c31, c32, c33 = c_nb[2, 0], c_nb[2, 1], c_nb[2, 2]
+    mu = atan2(-ca * sb * c31 + cb * c32 - sa * sb * c33, -sa * c31 + ca * c33)
     return jnp.stack(
         [vt, alpha, beta, state.pqr_radps[0], state.pqr_radps[1], state.pqr_radps[2],
          mu, gamma, chi, state.pos_ft[2]]
