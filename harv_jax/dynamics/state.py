@@ -213,15 +213,6 @@ def to_wind(state: BodyState) -> jnp.ndarray:
     )  # fmt: skip
 
 
-def euler_angles(state: BodyState) -> jnp.ndarray:
-    """Body 3-2-1 Euler angles [phi, theta, psi], rad."""
-    c = quat_to_dcm(state.quat)
-    theta = -jnp.arcsin(jnp.clip(c[2, 0], -1.0, 1.0))
-    phi = jnp.arctan2(c[2, 1], c[2, 2])
-    psi = jnp.arctan2(c[1, 0], c[0, 0])
-    return jnp.stack([phi, theta, psi])
-
-
 def is_finite(state: BodyState) -> jnp.ndarray:
     """True where every component of the state is finite (scalar bool)."""
     leaves = [state.uvw_fps, state.pqr_radps, state.quat, state.pos_ft]
