@@ -79,6 +79,7 @@ def test_plant_derivatives_through_the_loops() -> None:
     np.testing.assert_allclose(float(jnp.dot(grad, direction)), float(along), rtol=1e-4)
 
 
+@pytest.mark.skipif(jax.default_backend() != "cpu", reason="the loops exist on the CPU only")
 def test_plant_step_keeps_its_loops_on_cpu() -> None:
     params = harv()
     state = from_wind(X0_WIND)

@@ -25,7 +25,7 @@ from harv_jax.aircraft.aero import coefficients
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.dynamics.atmosphere import density_and_thrust_lapse
 from harv_jax.dynamics.fusion import airflow_angles, evaluated_once
-from harv_jax.dynamics.state import RATES, WIND_INDEX, BodyState, check_shape
+from harv_jax.dynamics.state import RATES, WIND_INDEX, BodyState, airflow_direction, check_shape
 
 #: Airspeed floor for the non-dimensional rates p b / (2V) etc., ft/s (guards V -> 0 only).
 V_FLOOR_FPS = 1.0
@@ -220,13 +220,7 @@ def body_derivatives(
     h = state.pos_ft[2]
     air = uvw if wind_body_fps is None else uvw - wind_body_fps
     ua, va, wa = air[0], air[1], air[2]
-    uw2 = ua * ua + wa * wa
-    vt2 = uw2 + va * va
-    uw, vt = jnp.sqrt(uw2), jnp.sqrt(vt2)
-    uw_safe = jnp.where(uw > 0, uw, 1.0)
-    vt_safe = jnp.where(vt > 0, vt, 1.0)
-    ca, sa = jnp.where(uw > 0, ua / uw_safe, 1.0), wa / uw_safe  # cos, sin alpha
-    cb, sb = jnp.where(vt > 0, uw / vt_safe, 1.0), va / vt_safe  # cos, sin beta
+    uw, vt, ca, sa, cb, sb = airflow_direction(ua, va, wa)  # (cos, sin alpha; cos, sin beta)
     alpha, beta = airflow_angles(wa, ua, va, uw)  # arctan2 of both (vectorized on the CPU in float32)
     fm = forces_moments(vt, alpha, beta, pqr, h, u, params, alpha_in_range=True)  # (an arctan2)
     m, g = params.mass_slug, params.g

@@ -98,11 +98,14 @@ def atan2_f32(y: jax.Array, x: jax.Array) -> jax.Array:
     return jnp.where(jnp.signbit(y), -a, a)
 
 
+def _vectorized_atan2(*args: jax.Array) -> bool:
+    """Float32 on the CPU: :func:`atan2_f32` replaces the library's scalar ``arctan2``."""
+    return _on_cpu() and jnp.result_type(*args) == jnp.float32
+
+
 def atan2(y: jax.Array, x: jax.Array) -> jax.Array:
     """``arctan2(y, x)``: :func:`atan2_f32` in float32 on the CPU (vectorized), else ``jnp.arctan2``."""
-    if _on_cpu() and jnp.result_type(y, x) == jnp.float32:
-        return atan2_f32(y, x)
-    return jnp.arctan2(y, x)
+    return atan2_f32(y, x) if _vectorized_atan2(y, x) else jnp.arctan2(y, x)
 
 
 def airflow_angles(wa: jax.Array, ua: jax.Array, va: jax.Array, uw: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -111,7 +114,7 @@ def airflow_angles(wa: jax.Array, ua: jax.Array, va: jax.Array, uw: jax.Array) -
     Float32 on the CPU: :func:`atan2_f32` of both, evaluated once (:func:`evaluated_once`); otherwise
     ``jnp.arctan2``.
     """
-    if not (_on_cpu() and jnp.result_type(wa, ua, va, uw) == jnp.float32):
+    if not _vectorized_atan2(wa, ua, va, uw):
         return jnp.arctan2(wa, ua), jnp.arctan2(va, uw)
 
     def both(v: tuple) -> jax.Array:

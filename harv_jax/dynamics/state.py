@@ -99,6 +99,20 @@ class BodyState:
     pos_ft: jnp.ndarray  # [3] = [x_N, y_E, h]
 
 
+def airflow_direction(u: jnp.ndarray, v: jnp.ndarray, w: jnp.ndarray) -> tuple[jnp.ndarray, ...]:
+    """(sqrt(u^2 + w^2), V, cos alpha, sin alpha, cos beta, sin beta) of a body-axis velocity, ft/s.
+
+    The direction cosines are ratios of the components (no angle, no sine or cosine); at zero speed
+    alpha = beta = 0.
+    """
+    uw2 = u * u + w * w
+    uw, vt = jnp.sqrt(uw2), jnp.sqrt(uw2 + v * v)
+    uw_safe, vt_safe = jnp.where(uw > 0, uw, 1.0), jnp.where(vt > 0, vt, 1.0)
+    ca, sa = jnp.where(uw > 0, u / uw_safe, 1.0), w / uw_safe
+    cb, sb = jnp.where(vt > 0, uw / vt_safe, 1.0), v / vt_safe
+    return uw, vt, ca, sa, cb, sb
+
+
 def dcm_wind_from_body(alpha: jnp.ndarray, beta: jnp.ndarray) -> jnp.ndarray:
     """C_wb [3,3]: components in body axes -> components in wind axes."""
     ca, sa, cb, sb = jnp.cos(alpha), jnp.sin(alpha), jnp.cos(beta), jnp.sin(beta)
@@ -193,12 +207,8 @@ def to_wind(state: BodyState) -> jnp.ndarray:
     library's ``arctan2`` is a scalar call per element).
     """
     u, v, w = state.uvw_fps[0], state.uvw_fps[1], state.uvw_fps[2]
-    uw2 = u * u + w * w
-    uw, vt = jnp.sqrt(uw2), jnp.sqrt(uw2 + v * v)
+    uw, vt, ca, sa, cb, sb = airflow_direction(u, v, w)
     alpha, beta = atan2(w, u), atan2(v, uw)
-    uw_safe, vt_safe = jnp.where(uw > 0, uw, 1.0), jnp.where(vt > 0, vt, 1.0)
-    ca, sa = jnp.where(uw > 0, u / uw_safe, 1.0), w / uw_safe
-    cb, sb = jnp.where(vt > 0, uw / vt_safe, 1.0), v / vt_safe
     c_nb = quat_to_dcm(state.quat)
     v_ned = c_nb @ state.uvw_fps
     gamma = atan2(-v_ned[2], jnp.hypot(v_ned[0], v_ned[1]))
