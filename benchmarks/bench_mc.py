@@ -8,16 +8,20 @@ Usage::
     python benchmarks/bench_mc.py --quick                # 64 runs x 5 s (+ 8 x 8 map): a sanity run
     python benchmarks/bench_mc.py --reference            # + the pre-issue-18 implementation, same inputs
     python benchmarks/bench_mc.py --reference --envelope # before/after of both studies, one JSON
+    python benchmarks/bench_mc.py --envelope --compare-chunk 250  # + chunks of 250 runs (the old default)
 
 What is timed: ``harv_jax.evaluation.monte_carlo.run_mc`` exactly as ``harv-jax mc`` calls it (common
 random initial states from the paper's reset bounds, nominal aircraft, alpha_d = 0.349 rad, dt 0.01 s,
-decimated bands every 10 steps, chunks of ``--chunk`` runs sharded over the local devices). ``compile`` is
+decimated bands every 10 steps, chunks of ``--chunk`` runs sharded over the local devices; by default the
+CLI's automatic chunk, ``guards.auto_chunk``). ``compile`` is
 ``lower().compile()`` of the chunk function, ``run`` the loop over all chunks including the transfer of
 the results to the host (best of ``--repeats`` calls; each call compiles again, and the best compile is
 reported, as the first call of a process also pays one-time warm-up; the envelope map is one call, its
 compile includes it). On a CPU, like the CLI, one XLA host device is created per core (``--host-devices``).
 Controllers come from ``harv_jax.control.registry.build_controller`` (``hybrid`` and ``rl`` fly ``--policy``,
-default the shipped policy); one that cannot be built is recorded as skipped.
+default the shipped policy); one that cannot be built is recorded as skipped. With ``--compare-chunk N``
+every study is also timed in chunks of N runs, the two settings alternating call by call (``chunk_comparison``
+lists the run seconds and the speed-up; the outcomes of the two settings are compared run by run).
 
 FLOPs per run-step come from XLA's cost analysis (``jit(...).lower(...).compile().cost_analysis()``) of one
 closed-loop step of one run, the body of ``closed_loop``'s scan: wind state, controller (policy forward,
@@ -127,10 +131,18 @@ def policy_forward_cost(policy: str | None) -> dict[str, float] | None:
 
 
 def bench_controller(
-    name: str, ctrl, runs: int, n_steps: int, chunk: int, seed: int, ceiling: float, repeats: int
-) -> dict:
-    """Time the Monte Carlo of one controller (``repeats`` calls of ``run_mc``: best compile time, best
-    run time) and count its FLOPs per run-step."""
+    name: str,
+    ctrl,
+    runs: int,
+    n_steps: int,
+    chunks: list[int | None],
+    seed: int,
+    ceiling: float,
+    repeats: int,
+) -> list[dict]:
+    """Time the Monte Carlo of one controller with each chunk setting (``None``: the automatic chunk):
+    ``repeats`` calls of ``run_mc`` per setting, the settings alternating; best compile time, best run time.
+    Also counts its FLOPs per run-step. One row per setting."""
     import jax
     import jax.numpy as jnp
     import numpy as np
@@ -142,36 +154,49 @@ def bench_controller(
     reference = jnp.array([TARGET_ALPHA_RAD, 0.0, 0.0])
     cost = step_cost(ctrl, harv(), reference)
     inputs = sample_mc_inputs(jax.random.key(seed), runs, harv())
-    walls = []
+    walls: dict[int, list[dict]] = {i: [] for i in range(len(chunks))}
+    outs = {}
     for _ in range(repeats):  # each call compiles again; the first run also pays one-time warm-up costs
-        out, wall = run_mc(ctrl, inputs, reference, n_steps, DT_S, RECORD_EVERY, chunk)
-        walls.append(wall)
-    # the best compile: the first call of a process also pays one-time warm-up (the controller built first
-    # would otherwise be charged for it, e.g. ``current`` before ``reference``)
-    wall = {"compile": min(w["compile"] for w in walls), "run": min(w["run"] for w in walls)}
-    rec = np.asarray(out.metrics.recovered)
-    outcome = np.asarray(out.metrics.outcome)
-    run_steps = runs * n_steps
-    achieved = cost.get("flops", float("nan")) * run_steps / wall["run"]
-    return {
-        "controller": name,
-        "runs": runs,
-        "steps_per_run": n_steps,
-        "chunk": min(chunk, runs),
-        "compile_s": wall["compile"],
-        "run_s": wall["run"],
-        "run_s_each_call": [w["run"] for w in walls],
-        "compile_s_each_call": [w["compile"] for w in walls],
-        "run_steps_per_s": run_steps / wall["run"],
-        "step_cost": cost,
-        "achieved_flops_per_s": achieved,
-        "fraction_of_matmul_ceiling": achieved / ceiling,
-        "recovery_rate": float(rec.mean()),
-        "outcomes": {name: int((outcome == code).sum()) for code, name in enumerate(OUTCOME_NAMES)},
-    }
+        for i, chunk in enumerate(chunks):
+            outs[i], wall = run_mc(ctrl, inputs, reference, n_steps, DT_S, RECORD_EVERY, chunk)
+            walls[i].append(wall)
+    rows = []
+    for i, chunk in enumerate(chunks):
+        # the best compile: the first call of a process also pays one-time warm-up (the controller built
+        # first would otherwise be charged for it, e.g. ``current`` before ``reference``)
+        ws = walls[i]
+        wall = {"compile": min(w["compile"] for w in ws), "run": min(w["run"] for w in ws)}
+        out = outs[i]
+        rec = np.asarray(out.metrics.recovered)
+        outcome = np.asarray(out.metrics.outcome)
+        run_steps = runs * n_steps
+        achieved = cost.get("flops", float("nan")) * run_steps / wall["run"]
+        rows.append({
+            "controller": name,
+            "runs": runs,
+            "steps_per_run": n_steps,
+            "chunk": ws[0]["chunk_runs"],
+            "chunk_setting": "auto" if chunk is None else chunk,
+            "compile_s": wall["compile"],
+            "run_s": wall["run"],
+            "run_s_each_call": [w["run"] for w in ws],
+            "compile_s_each_call": [w["compile"] for w in ws],
+            "run_steps_per_s": run_steps / wall["run"],
+            "step_cost": cost,
+            "achieved_flops_per_s": achieved,
+            "fraction_of_matmul_ceiling": achieved / ceiling,
+            "recovery_rate": float(rec.mean()),
+            "outcomes": {name: int((outcome == code).sum()) for code, name in enumerate(OUTCOME_NAMES)},
+            "_outcome": outcome,
+        })  # fmt: skip
+    for r in rows[1:]:  # the same runs in other chunks: equal outcomes (the floats differ by rounding)
+        r["outcomes_equal_to_first_setting"] = bool(np.array_equal(r["_outcome"], rows[0]["_outcome"]))
+    for r in rows:
+        del r["_outcome"]
+    return rows
 
 
-def bench_envelope(name: str, ctrl, n: int, n_steps: int, chunk: int, seed: int) -> dict:
+def bench_envelope(name: str, ctrl, n: int, n_steps: int, chunk: int | None, seed: int) -> dict:
     """Time the n x n alpha0 x r0 envelope map of one controller."""
     import jax
     import jax.numpy as jnp
@@ -189,6 +214,8 @@ def bench_envelope(name: str, ctrl, n: int, n_steps: int, chunk: int, seed: int)
         "grid": f"alpha0 x r0, {n} x {n} (reset bounds; other states envelope_map.DEFAULT_FIXED_STATE)",
         "runs": grid.n_runs,
         "steps_per_run": n_steps,
+        "chunk": wall["chunk_runs"],
+        "chunk_setting": "auto" if chunk is None else chunk,
         "compile_s": wall["compile"],
         "run_s": wall["run"],
         "run_steps_per_s": grid.n_runs * n_steps / wall["run"],
@@ -216,6 +243,30 @@ def before_after(rows: list[dict], env_rows: list[dict]) -> dict[str, dict[str, 
     return out
 
 
+def chunk_comparison(rows: list[dict], env_rows: list[dict]) -> dict[str, dict[str, float]]:
+    """Per controller and study: run seconds with ``--compare-chunk`` and with ``--chunk`` (same process,
+    alternating), and the speed-up = compare / chunk."""
+    out = {}
+    for study, items in (("mc", rows), ("envelope", env_rows)):
+        for r in items:
+            other = next(
+                (o for o in items if o["controller"] == r["controller"] and o["implementation"] == "current"),
+                None,
+            )
+            if other is None or not r["implementation"].startswith("current_chunk_"):
+                continue
+            out[f"{study}_{r['controller']}"] = {
+                "chunk_compared": r["chunk"],
+                "chunk": other["chunk"],
+                "run_s_compared": r["run_s"],
+                "run_s": other["run_s"],
+                "run_speedup": r["run_s"] / other["run_s"],
+                "compile_s_compared": r["compile_s"],
+                "compile_s": other["compile_s"],
+            }
+    return out
+
+
 @contextlib.contextmanager
 def _implementation(name: str) -> Iterator[None]:
     """``current``: the package as it is; ``reference``: the pre-issue-18 SMC/aero/atmosphere swapped in."""
@@ -235,12 +286,21 @@ def main() -> None:
     ap.add_argument("--policy", default=None, help="rl/hybrid policy (default: the shipped policy)")
     ap.add_argument("--runs", type=int, default=1000)
     ap.add_argument("--duration", type=float, default=60.0, help="seconds per run")
-    ap.add_argument("--chunk", type=int, default=None, help="runs per compiled call (CPU 250, GPU all runs)")
+    ap.add_argument(
+        "--chunk", type=int, default=None, help="runs per compiled call (default: automatic, as the CLI)"
+    )
+    ap.add_argument(
+        "--compare-chunk",
+        type=int,
+        default=None,
+        help="also time every study with this chunk, alternating with --chunk (e.g. 250, the pre-session-12 "
+        "default)",
+    )
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--repeats", type=int, default=2, help="run_mc calls per controller (best run time)")
     ap.add_argument("--envelope", action="store_true", help="also time the n x n envelope map")
     ap.add_argument("--envelope-n", type=int, default=100, help="points per envelope axis")
-    ap.add_argument("--envelope-chunk", type=int, default=None, help="runs per call (CPU 250, GPU 10,000)")
+    ap.add_argument("--envelope-chunk", type=int, default=None, help="runs per call (default: automatic)")
     ap.add_argument("--matmul-n", type=int, default=None, help="matmul size (CPU 2048, GPU 8192)")
     ap.add_argument("--host-devices", type=int, default=cpu_cores(), help="XLA host devices on a CPU")
     ap.add_argument("--quick", action="store_true", help="64 runs x 5 s (+ 8 x 8 map): a sanity run")
@@ -267,8 +327,8 @@ def main() -> None:
         runs, duration, env_n = 64, 5.0, 8
     n_steps = int(round(duration / DT_S))
     n_steps -= n_steps % RECORD_EVERY
-    chunk = args.chunk or (runs if gpu else 250)
-    env_chunk = args.envelope_chunk or (env_n * env_n if gpu else 250)
+    chunks = [args.chunk] + ([args.compare_chunk] if args.compare_chunk else [])
+    env_chunks = [args.envelope_chunk] + ([args.compare_chunk] if args.compare_chunk else [])
     machine = machine_name(args.machine)
     print(
         f"device {dev.platform}:{dev.device_kind} x{jax.local_device_count()}  jax {jax.__version__}",
@@ -290,34 +350,35 @@ def main() -> None:
                     skipped[name] = f"{type(e).__name__}: {e}"
                     print(f"{name}: skipped ({skipped[name]})", flush=True)
                     break
-                r = bench_controller(
-                    name, ctrl, runs, n_steps, chunk, args.seed, ceiling["flops_per_s"], args.repeats
+                mc_rows = bench_controller(
+                    name, ctrl, runs, n_steps, chunks, args.seed, ceiling["flops_per_s"], args.repeats
                 )
-                r["implementation"] = impl
-                r["load_average_1min_after"] = load_average_1min()
-                e = (
-                    bench_envelope(name, ctrl, env_n, n_steps, env_chunk, args.seed)
-                    if args.envelope
-                    else None
-                )
+                for i, r in enumerate(mc_rows):  # the settings after the first are a comparison
+                    r["implementation"] = impl if i == 0 else f"{impl}_chunk_{r['chunk_setting']}"
+                    r["load_average_1min_after"] = load_average_1min()
+                es = []
+                for i, c in enumerate(env_chunks if args.envelope else []):
+                    e = bench_envelope(name, ctrl, env_n, n_steps, c, args.seed)
+                    e["implementation"] = impl if i == 0 else f"{impl}_chunk_{e['chunk_setting']}"
+                    e["load_average_1min_after"] = load_average_1min()
+                    es.append(e)
             again = matmul_ceiling(matmul_n)  # re-measured next to every timing; the best value is used
             ceiling["flops_per_s"] = max(ceiling["flops_per_s"], again["flops_per_s"])
-            rows.append(r)
-            print(
-                f"{name:>7} ({impl}): {runs} runs x {n_steps} steps: compile {r['compile_s']:.1f} s, "
-                f"run {r['run_s']:.2f} s ({r['run_steps_per_s']:,.0f} run-steps/s), "
-                f"{r['step_cost'].get('flops', 0):,.0f} FLOPs/step = "
-                f"{100 * r['fraction_of_matmul_ceiling']:.2f}% of the matmul ceiling, "
-                f"recovery {r['recovery_rate']:.3f}",
-                flush=True,
-            )
-            if e is not None:
-                e["implementation"] = impl
-                e["load_average_1min_after"] = load_average_1min()
-                env_rows.append(e)
+            rows.extend(mc_rows)
+            env_rows.extend(es)
+            for r in mc_rows:
                 print(
-                    f"{name:>7} ({impl}): envelope {env_n} x {env_n} = {e['runs']} runs: compile "
-                    f"{e['compile_s']:.1f} s, run {e['run_s']:.1f} s, "
+                    f"{name:>7} ({r['implementation']}): {runs} runs x {n_steps} steps in chunks of "
+                    f"{r['chunk']}: compile {r['compile_s']:.1f} s, run {r['run_s']:.2f} s "
+                    f"({r['run_steps_per_s']:,.0f} run-steps/s), {r['step_cost'].get('flops', 0):,.0f} "
+                    f"FLOPs/step = {100 * r['fraction_of_matmul_ceiling']:.2f}% of the matmul ceiling, "
+                    f"recovery {r['recovery_rate']:.3f}",
+                    flush=True,
+                )
+            for e in es:
+                print(
+                    f"{name:>7} ({e['implementation']}): envelope {env_n} x {env_n} = {e['runs']} runs in "
+                    f"chunks of {e['chunk']}: compile {e['compile_s']:.1f} s, run {e['run_s']:.1f} s, "
                     f"recovered {100 * e['recovery_rate']:.1f}%",
                     flush=True,
                 )
@@ -358,7 +419,8 @@ def main() -> None:
             "dt_s": DT_S,
             "steps_per_run": n_steps,
             "record_every": RECORD_EVERY,
-            "chunk": chunk,
+            "chunk": "auto" if args.chunk is None else args.chunk,
+            "compare_chunk": args.compare_chunk,
             "target_alpha_rad": TARGET_ALPHA_RAD,
             "aircraft": "nominal",
             "initial_states": "paper reset bounds (V, alpha, beta, p, q, r)",
@@ -373,6 +435,7 @@ def main() -> None:
         "skipped": skipped,
         "targets": targets,
         "before_after": before_after(rows, env_rows),
+        "chunk_comparison": chunk_comparison(rows, env_rows),
     }
     name = f"mc_{machine}_quick.json" if args.quick else f"mc_{machine}.json"
     path = write_json(args.out_dir, name, result)

@@ -51,7 +51,8 @@ def build(
     """Compiled plant / smc / hybrid step loops with their arguments, compile times and per-step costs.
 
     ``controllers``: the continuous-schedule controllers to build (``smc``, ``hybrid``); ``gated`` adds
-    ``hybrid_gated``, ``hybrid_simplex`` and ``rl`` (the policy alone).
+    ``hybrid_gated``, ``hybrid_simplex``, ``hybrid_simplex_zero_policy`` (the simplex hybrid with a policy
+    that costs nothing: the hybrid's own logic) and ``rl`` (the policy alone).
     """
     import jax
     import jax.numpy as jnp
@@ -107,8 +108,15 @@ def build(
         kinds["hybrid_gated"] = ("hybrid", "gated")
         kinds["hybrid_simplex"] = ("hybrid", "simplex")
         kinds["rl"] = ("rl", "continuous")
-    for name, (kind, zeta) in kinds.items():
-        ctrl = build_controller(kind, ControllerOptions(policy=policy, zeta=zeta))
+    ctrls = {n: build_controller(k, ControllerOptions(policy=policy, zeta=z)) for n, (k, z) in kinds.items()}
+    if gated:  # the simplex hybrid with a policy that costs nothing: what the hybrid's own logic costs
+        from harv_jax.control.hybrid import HybridConfig, make_hybrid
+
+        def zero_policy(obs):
+            return jnp.zeros(obs.shape[:-1] + (3,), obs.dtype)
+
+        ctrls["hybrid_simplex_zero_policy"] = make_hybrid(zero_policy, HybridConfig(schedule="simplex"))
+    for name, ctrl in ctrls.items():
         cstate0 = jax.vmap(ctrl.init)(params)
         variants[name] = (closed_step(ctrl), 3, (body0, delta0, cstate0, params))
     for name, (step, n_carry, args) in variants.items():
@@ -186,7 +194,7 @@ def main(argv: list[str] | None = None) -> dict:
             "smc_over_plant": us["smc"] / us["plant"],
             "hybrid_over_smc": us["hybrid"] / us["smc"],
         }
-        for k in ("hybrid_gated", "hybrid_simplex", "rl"):
+        for k in ("hybrid_gated", "hybrid_simplex", "hybrid_simplex_zero_policy", "rl"):
             if k in us:
                 rows[s]["ratios"][f"{k}_over_smc"] = us[k] / us["smc"]
         print(
@@ -202,7 +210,7 @@ def main(argv: list[str] | None = None) -> dict:
             k: ref[k]["us_per_step"] / cur[k]["us_per_step"] for k in ("plant", "smc", "hybrid")
         }
         print(f"speed-up over the reference: {rows['speedup_over_reference']}", flush=True)
-    for k in ("hybrid_gated", "hybrid_simplex", "rl"):
+    for k in ("hybrid_gated", "hybrid_simplex", "hybrid_simplex_zero_policy", "rl"):
         if f"{k}_over_smc" in rows["current"]["ratios"]:
             print(f"{k} / smc: {rows['current']['ratios'][f'{k}_over_smc']:.2f}", flush=True)
     ratios = rows["current"]["ratios"]

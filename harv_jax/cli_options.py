@@ -64,7 +64,7 @@ def command_line() -> str:
     return "harv-jax " + " ".join(shlex.quote(a) for a in sys.argv[1:])
 
 
-def check_mc_options(runs: int, target_alpha: float, duration: float, chunk: int) -> None:
+def check_mc_options(runs: int, target_alpha: float, duration: float, chunk: int | None) -> None:
     """One-line UsageErrors for out-of-range numeric flags of ``mc``, ``envelope`` and ``quickstart``."""
     if not 1 <= runs <= MAX_RUNS:
         raise UsageError(f"--runs {runs} must be in [1, {MAX_RUNS}]")
@@ -74,7 +74,7 @@ def check_mc_options(runs: int, target_alpha: float, duration: float, chunk: int
         )
     if not (math.isfinite(duration) and 1.0 <= duration <= MAX_DURATION_S):
         raise UsageError(f"--duration {duration} s must be in [1, {MAX_DURATION_S:g}]")
-    if chunk < 1:
+    if chunk is not None and chunk < 1:
         raise UsageError(f"--chunk {chunk} must be >= 1")
 
 

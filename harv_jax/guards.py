@@ -22,6 +22,14 @@ BYTES_PER_FLOAT = 4
 SIMULATE_BYTES_PER_STEP = 10 * 4 + 14 * 8 * 3
 #: Floats per run and step of one closed-loop chunk kept at full rate (state, surfaces, commands, info).
 CLOSED_LOOP_FLOATS_PER_STEP = 48
+#: Runs per XLA device in one compiled Monte Carlo / envelope call when ``--chunk`` is not given, on a CPU.
+#: Each closed-loop step pays a fixed dispatch cost per compiled operation, whatever the batch, so small
+#: chunks run slower: on the 2-core EPYC, 1000 runs x 60 s in chunks of 250 / 500 / 1000 runs (125 / 250 /
+#: 500 per device) took 3.6-4.4 / 2.9 / 2.6 s (SMC) and 4.4-5.0 / 3.7 / 3.8 s (hybrid); 10,000 runs x 5 s
+#: were fastest in chunks of 1000-2500 and slower again in chunks of 5000 or more (cache).
+AUTO_CHUNK_RUNS_PER_CPU_DEVICE = 512
+#: Fraction of physical memory the full-rate data of one automatic chunk may take.
+AUTO_CHUNK_MEMORY_FRACTION = 0.125
 #: Floats per env and unrolled step of one PPO update (transition, advantages, shuffled minibatch copies).
 TRAIN_FLOATS_PER_TRANSITION = 3 * 40
 #: Floats per env of the env state (aircraft parameters, tables, actuator and filter state, statistics).
@@ -79,8 +87,36 @@ def check_simulate(duration_s: float, dt_s: float) -> None:
                  "shorten --duration or raise --dt")  # fmt: skip
 
 
+def closed_loop_chunk_bytes(runs: int, n_steps: int) -> int:
+    """Rough bytes of the full-rate data of ``runs`` closed-loop runs of ``n_steps`` steps in one call."""
+    return runs * n_steps * CLOSED_LOOP_FLOATS_PER_STEP * BYTES_PER_FLOAT
+
+
+def auto_chunk(runs: int, n_steps: int, n_devices: int = 1, runs_per_device: int | None = None) -> int:
+    """Runs per compiled call when none is given.
+
+    ``runs_per_device`` runs per device (``None``: all runs, as on a GPU), at most
+    :data:`AUTO_CHUNK_MEMORY_FRACTION` of the machine's memory at full rate, a multiple of ``n_devices``
+    (at least ``n_devices``, the runs are sharded over them), and within the int32 step counters.
+    """
+    if runs < 1 or n_steps < 1 or n_devices < 1:
+        raise ValueError(f"runs={runs}, n_steps={n_steps}, n_devices={n_devices}: each must be >= 1")
+    memory_share = int(AUTO_CHUNK_MEMORY_FRACTION * machine_memory_bytes())
+    by_memory = memory_share // closed_loop_chunk_bytes(1, n_steps)
+    by_device = runs if runs_per_device is None else runs_per_device * n_devices
+    chunk = max(1, min(runs, by_memory, by_device, INT32_MAX // n_steps))
+    if n_devices > 1:
+        chunk = max(n_devices, chunk - chunk % n_devices)
+    return chunk
+
+
 def check_closed_loop_batch(
-    runs: int, n_steps: int, record_every: int, chunk: int, n_controllers: int, runs_flag: str = "--runs"
+    runs: int,
+    n_steps: int,
+    record_every: int,
+    chunk: int | None,
+    n_controllers: int,
+    runs_flag: str = "--runs",
 ) -> None:
     """Guard a Monte Carlo / envelope: full-rate data of one chunk plus every run's decimated history.
 
@@ -88,13 +124,15 @@ def check_closed_loop_batch(
         runs: runs per controller.
         n_steps: plant steps per run.
         record_every: decimation of the kept alpha/beta/mu history (``n_steps``: one sample per run).
-        chunk: runs per compiled call.
+        chunk: runs per compiled call (``None``: :func:`auto_chunk`, which stays within its memory share).
         n_controllers: controllers flown (their histories are all kept).
         runs_flag: the flag that set ``runs`` (``--runs``, ``--n``).
     """
+    if chunk is None:  # the largest automatic chunk (one device): it is sized to fit memory
+        chunk = auto_chunk(runs, n_steps)
     chunk = min(chunk, runs)
     check_steps(chunk * n_steps, f"--chunk {chunk} x {n_steps:,} steps per run", "lower --chunk")
-    chunk_bytes = chunk * n_steps * CLOSED_LOOP_FLOATS_PER_STEP * BYTES_PER_FLOAT
+    chunk_bytes = closed_loop_chunk_bytes(chunk, n_steps)
     history_bytes = n_controllers * runs * (n_steps // max(record_every, 1) + 1) * 3 * BYTES_PER_FLOAT
     check_memory(
         chunk_bytes + history_bytes,

@@ -213,6 +213,19 @@ def test_supervisor_repeated_interventions_then_back():
     assert not fb[back:].any() and int(st.n_fallbacks) == 1
 
 
+def test_supervisor_window_count_is_the_trailing_sum_of_interventions():
+    flags = jax.random.bernoulli(jax.random.key(3), 0.4, (350,))  # 3.5 turns of the 100-slot ring
+
+    def step(st, fl):
+        st = record_intervention(st, fl)
+        return st, (st.window_count, jnp.sum(st.window))
+
+    _, (count, summed) = jax.lax.scan(step, supervisor_init(100, jnp.float32), flags)
+    trailing = np.convolve(np.asarray(flags, np.int32), np.ones(100, np.int32))[:350]
+    np.testing.assert_array_equal(np.asarray(count), np.asarray(summed))
+    np.testing.assert_array_equal(np.asarray(count), trailing)
+
+
 def test_bang_bang_policy_triggers_intervention_fallback_in_closed_loop():
     params = _nominal()
 

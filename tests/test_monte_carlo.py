@@ -20,6 +20,7 @@ from harv_jax.evaluation.monte_carlo import (
     sample_mc_inputs,
 )
 from harv_jax.evaluation.summary import summarize_controller
+from harv_jax.guards import AUTO_CHUNK_RUNS_PER_CPU_DEVICE, auto_chunk, closed_loop_chunk_bytes
 from harv_jax.task.criteria import tracking_errors
 
 N_STEPS = 300  # 3 s: enough for distinct outcomes (most runs TIMEOUT, some DEPARTED)
@@ -61,6 +62,31 @@ def test_mc_equals_single_runs(mc32):
         np.testing.assert_allclose(np.asarray(m.final_error_rad), out.metrics.final_error_rad[i], atol=1e-5)
         # altitudes near 25,000 ft carry a float32 ulp of 0.002 ft
         np.testing.assert_allclose(float(m.altitude_loss_ft), out.metrics.altitude_loss_ft[i], atol=0.02)
+
+
+def test_auto_chunk_per_device_memory_and_device_multiple(monkeypatch):
+    import harv_jax.guards as guards
+
+    monkeypatch.setattr(guards, "machine_memory_bytes", lambda: 64 * 2**30)
+    assert auto_chunk(1000, 6000, 2, 512) == 1000  # under 512 per device: all runs, a multiple of 2
+    assert auto_chunk(10_000, 6000, 2, 512) == 1024
+    assert auto_chunk(1001, 6000, 2, 512) == 1000
+    assert auto_chunk(10_000, 6000, 1, None) == 7_456  # a GPU: all runs, up to 1/8 of memory
+    assert closed_loop_chunk_bytes(7_456, 6000) <= 8 * 2**30 < closed_loop_chunk_bytes(7_457, 6000)
+    monkeypatch.setattr(guards, "machine_memory_bytes", lambda: 2**30)
+    assert auto_chunk(1000, 6000, 2, 512) == 116  # 1/8 GiB at 192 bytes per run-step: 116 runs
+    assert auto_chunk(3, 10**9, 2, 512) == 2  # memory share below one run: one run per device
+    with pytest.raises(ValueError, match="n_devices=0"):
+        auto_chunk(10, 10, 0, 512)
+
+
+def test_default_chunk_is_automatic_recorded_and_equal_in_outcomes(mc32):
+    inputs, out16, _ = mc32
+    out, wall = run_mc(make_smc(), inputs, REF, N_STEPS, record_every=10)
+    expected = auto_chunk(32, N_STEPS, jax.local_device_count(), AUTO_CHUNK_RUNS_PER_CPU_DEVICE)
+    assert wall["chunk_runs"] == expected == 32 and summarize_controller(out, wall)["chunk_runs"] == 32
+    np.testing.assert_array_equal(out.metrics.outcome, out16.metrics.outcome)  # floats: rounding only
+    np.testing.assert_allclose(out.metrics.final_error_rad, out16.metrics.final_error_rad, atol=1e-5)
 
 
 def test_terminal_error_is_mean_over_last_second(mc32):

@@ -125,7 +125,11 @@ def register(app: typer.Typer) -> None:
         ),
         zeta: str = zeta_option(),
         seed: int = typer.Option(0, help="Seed of the controllers' keys (the grid itself is deterministic)."),
-        chunk: int = typer.Option(250, help="Runs per compiled call (bounds memory)."),
+        chunk: int | None = typer.Option(
+            None,
+            help="Runs per compiled call (bounds memory). Default: 512 per CPU core, all runs on a GPU, "
+            "within 1/8 of memory. Results depend on it at float rounding.",
+        ),
         out: Path = typer.Option(Path("runs/envelope"), help="Output directory."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
     ) -> None:

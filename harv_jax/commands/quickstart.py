@@ -19,7 +19,7 @@ from harv_jax.cli_options import policy_option, zeta_option
 QUICKSTART_CONTROLLERS = ("smc", "rl", "hybrid")
 DURATION_S = 60.0
 SPIN_S = 30.0
-CHUNK = 250
+CHUNK: int | None = None  # runs per compiled call: guards.auto_chunk
 
 
 def register(app: typer.Typer) -> None:

@@ -80,6 +80,7 @@ class SupervisorState:
         normal_time_s: time conditions have been normal during the fallback, s.
         window: bool [W] ring buffer of per-step interventions.
         window_pos: int32 next slot of the ring buffer.
+        window_count: int32 number of True slots in ``window`` (kept with it, so no step sums the window).
         n_fallbacks: int32 fallbacks so far.
     """
 
@@ -88,6 +89,7 @@ class SupervisorState:
     normal_time_s: jnp.ndarray
     window: jnp.ndarray
     window_pos: jnp.ndarray
+    window_count: jnp.ndarray
     n_fallbacks: jnp.ndarray
 
 
@@ -99,6 +101,7 @@ def supervisor_init(window_steps: int, dtype) -> SupervisorState:
         normal_time_s=jnp.asarray(0.0, dtype),
         window=jnp.zeros((window_steps,), bool),
         window_pos=jnp.asarray(0, jnp.int32),
+        window_count=jnp.asarray(0, jnp.int32),
         n_fallbacks=jnp.asarray(0, jnp.int32),
     )
 
@@ -119,7 +122,7 @@ def supervise(
 ) -> SupervisorState:
     """Decide the mode for this step (``state.fallback`` of the result)."""
     ood = out_of_envelope(x_wind, gains)
-    too_many = jnp.sum(state.window) > gains.max_interventions
+    too_many = state.window_count > gains.max_interventions
     trigger = ood | too_many
     enter = ~state.fallback & trigger
     normal_time = jnp.where(state.fallback & ~trigger, state.normal_time_s + dt_s, 0.0)
@@ -138,9 +141,11 @@ def supervise(
 
 
 def record_intervention(state: SupervisorState, intervened: jnp.ndarray) -> SupervisorState:
-    """Push this step's intervention flag into the ring buffer."""
+    """Push this step's intervention flag into the ring buffer (the flag it replaces leaves the count)."""
     w = state.window.shape[0]
+    leaving = state.window[state.window_pos]
     return state.replace(
         window=state.window.at[state.window_pos].set(intervened),
         window_pos=(state.window_pos + 1) % w,
+        window_count=state.window_count + intervened.astype(jnp.int32) - leaving.astype(jnp.int32),
     )

@@ -236,7 +236,7 @@ def run_envelope(
     reference_rad: jnp.ndarray,
     n_steps: int,
     dt_s: float = DT_S,
-    chunk_size: int = 250,
+    chunk_size: int | None = None,
 ) -> tuple[EnvelopeMap, MCRunOutput, dict[str, float]]:
     """Fly ``controller`` from every grid point (one ``run_mc`` call; no trajectory history kept).
 
@@ -247,7 +247,7 @@ def run_envelope(
         reference_rad: [3] [alpha_d, beta_d, mu_d], rad.
         n_steps: plant steps per run (static).
         dt_s: plant step, s.
-        chunk_size: runs per compiled call (bounds memory).
+        chunk_size: runs per compiled call (bounds memory; ``None``: ``guards.auto_chunk``).
 
     Returns:
         (EnvelopeMap, per-run MCRunOutput, {"compile": s, "run": s}).

@@ -42,7 +42,7 @@ def envelope_study(
     target_alpha_rad: float,
     duration_s: float,
     seed: int,
-    chunk: int = 250,
+    chunk: int | None = None,
     zeta: str = DEFAULT_ZETA,
     command: str = "",
     progress: Callable[[str], None] | None = None,

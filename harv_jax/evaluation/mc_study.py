@@ -47,7 +47,7 @@ def monte_carlo(
     duration_s: float,
     seed: int,
     randomize: bool,
-    chunk: int = 250,
+    chunk: int | None = None,
     record_every: int = 10,
     zeta: str = DEFAULT_ZETA,
     command: str = "",

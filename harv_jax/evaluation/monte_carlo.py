@@ -26,6 +26,7 @@ from harv_jax.control.scheduling import SIMPLEX_REASONS
 from harv_jax.dynamics.state import TRACKED_INDEX, WIND_INDEX
 from harv_jax.evaluation.closed_loop import closed_loop, score
 from harv_jax.evaluation.metrics import RunMetrics
+from harv_jax.guards import AUTO_CHUNK_RUNS_PER_CPU_DEVICE, auto_chunk
 from harv_jax.task.criteria import tracking_errors
 from harv_jax.task.scenarios import sample_table_states
 from harv_jax.task.spec import DT_S, H0_FT
@@ -157,7 +158,7 @@ def run_mc(
     n_steps: int,
     dt_s: float = DT_S,
     record_every: int = 10,
-    chunk_size: int = 250,
+    chunk_size: int | None = None,
 ) -> tuple[MCRunOutput, dict[str, float]]:
     """Fly ``controller`` on every run of ``inputs``.
 
@@ -168,14 +169,20 @@ def run_mc(
         n_steps: plant steps per run (static).
         dt_s: plant step, s.
         record_every: decimation of the stored alpha/beta/mu histories.
-        chunk_size: runs per compiled call (bounds memory); N is padded to a multiple of it.
+        chunk_size: runs per compiled call (bounds memory); N is padded to a multiple of it. ``None``:
+            ``guards.auto_chunk`` (512 runs per device on a CPU, all runs on a GPU, within 1/8 of memory).
+            Results depend on it at float rounding (the compiled batch differs), not beyond.
 
     Returns:
-        (MCRunOutput with numpy leaves of leading size N, {"compile": s, "run": s}).
+        (MCRunOutput with numpy leaves of leading size N, {"compile": s, "run": s, "chunk_runs": runs per
+        call}).
     """
     n = int(inputs.x0_wind.shape[0])
-    chunk_size = max(1, min(chunk_size, n))
     n_dev = jax.local_device_count()
+    if chunk_size is None:
+        per_device = AUTO_CHUNK_RUNS_PER_CPU_DEVICE if jax.default_backend() == "cpu" else None
+        chunk_size = auto_chunk(n, n_steps, n_dev, per_device)
+    chunk_size = max(1, min(chunk_size, n))
     if n_dev > 1:
         chunk_size = max(n_dev, chunk_size - chunk_size % n_dev)
     n_chunks = -(-n // chunk_size)
@@ -198,7 +205,7 @@ def run_mc(
         outs.append(jax.device_get(compiled(take(i), reference_rad)))
     t_run = time.perf_counter() - t0
     out = jax.tree.map(lambda *xs: np.concatenate(xs, axis=0)[:n], *outs)
-    return out, {"compile": t_compile, "run": t_run}
+    return out, {"compile": t_compile, "run": t_run, "chunk_runs": chunk_size}
 
 
 def gate_summary(info: dict[str, Any]) -> dict[str, Any]:

@@ -125,6 +125,7 @@ def summarize_controller(
         "ground_hits_in_departed": counts["GROUND_HIT"],
         "left_envelope_fraction": float(np.mean(m.left_envelope)),
         "wall_time_s": {"compile": wall["compile"], "run": wall["run"]},
+        "chunk_runs": wall.get("chunk_runs"),
     }
 
 
