@@ -33,6 +33,8 @@ from harv_jax.task.criteria import omega_norm_radps, tracking_errors
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 N_STEPS = 6000
+#: Runs per compiled call: the chunk these results were made with (the default before session 12).
+CHUNK = 250
 #: hold settings: (speed ft/s, ||omega|| rad/s, until s); speed 0: no hold (the session-8 default).
 VARIANTS: dict[str, tuple[float, float, float]] = {
     "none (session 8)": (0.0, 0.0, 0.0),
@@ -89,7 +91,7 @@ def main() -> None:
     hybrid = make_hybrid(act, HybridConfig(schedule="simplex"), with_hold(*VARIANTS["none (session 8)"]))
     opts = ControllerOptions(policy=a.policy)
     ctrls = {"smc": build_controller("smc", opts), "rl": build_controller("rl", opts), "hybrid": hybrid}
-    outs = {k: run_mc(c, inputs, ref, N_STEPS)[0] for k, c in ctrls.items()}
+    outs = {k: run_mc(c, inputs, ref, N_STEPS, chunk_size=CHUNK)[0] for k, c in ctrls.items()}
     tv = {k: np.asarray(o.metrics.control_tv_rad, np.float64).sum(-1) for k, o in outs.items()}
     info = outs["hybrid"].info_means
     box = np.asarray(info["handover_box"]) > 0
@@ -128,8 +130,9 @@ def main() -> None:
     variants = {}
     for name, hold in VARIANTS.items():
         out, _ = run_mc(
-            make_hybrid(act, HybridConfig(schedule="simplex"), with_hold(*hold)), inputs, ref, N_STEPS
-        )
+            make_hybrid(act, HybridConfig(schedule="simplex"), with_hold(*hold)), inputs, ref, N_STEPS,
+            chunk_size=CHUNK,
+        )  # fmt: skip
         variants[name] = {
             "hold_speed_fps": hold[0],
             "hold_rate_radps": hold[1],

@@ -16,6 +16,8 @@ from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 N = int(sys.argv[1]) if len(sys.argv) > 1 else 256
+#: Runs per compiled call: the chunk these results were made with (the default before session 12).
+CHUNK = 250
 smc = build_controller("smc")
 nominal = harv()
 inputs = sample_mc_inputs(jax.random.PRNGKey(123), N, nominal)
@@ -42,8 +44,8 @@ def report(name, out, base=None):
     return t
 
 
-out, _ = run_mc(smc, inputs, ref, 6000)
+out, _ = run_mc(smc, inputs, ref, 6000, chunk_size=CHUNK)
 t0 = report("smc", out)
 for ab, vs in [(0.6, 600.0), (0.8, 600.0), (0.6, 400.0), (0.8, 400.0), (1.0, 500.0)]:
-    out, _ = run_mc(braking(ab, vs), inputs, ref, 6000)
+    out, _ = run_mc(braking(ab, vs), inputs, ref, 6000, chunk_size=CHUNK)
     report(f"brake a={ab} V>{vs}", out, t0)
