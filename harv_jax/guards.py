@@ -25,7 +25,7 @@ CLOSED_LOOP_FLOATS_PER_STEP = 48
 #: Runs per XLA device in one compiled Monte Carlo / envelope call when ``--chunk`` is not given, on a CPU.
 #: Each closed-loop step pays a fixed dispatch cost per compiled operation, whatever the batch, so small
 #: chunks run slower: on the 2-core EPYC, 1000 runs x 60 s in chunks of 250 / 500 / 1000 runs (125 / 250 /
-#: 500 per device) took 3.6-4.4 / 2.9 / 2.6 s (SMC) and 4.4-5.0 / 3.7 / 3.8 s (hybrid); 10,000 runs x 5 s
+#: 500 per device) took 3.6-4.4 / 2.9 / 2.6 s (SMC) and 4.3-5.0 / 3.7 / 3.7-3.8 s (hybrid); 10,000 runs x 5 s
 #: were fastest in chunks of 1000-2500 and slower again in chunks of 5000 or more (cache).
 AUTO_CHUNK_RUNS_PER_CPU_DEVICE = 512
 #: Fraction of physical memory the full-rate data of one automatic chunk may take.

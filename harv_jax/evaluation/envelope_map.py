@@ -250,7 +250,7 @@ def run_envelope(
         chunk_size: runs per compiled call (bounds memory; ``None``: ``guards.auto_chunk``).
 
     Returns:
-        (EnvelopeMap, per-run MCRunOutput, {"compile": s, "run": s}).
+        (EnvelopeMap, per-run MCRunOutput, {"compile": s, "run": s, "chunk_runs": runs per call}).
     """
     if int(inputs.x0_wind.shape[0]) != grid.n_runs:
         raise ValueError(f"inputs hold {inputs.x0_wind.shape[0]} runs, the grid {grid.n_runs}")
