@@ -11,7 +11,7 @@ import pytest
 from policy_fixtures import FIXTURE_POLICIES, write_fixture_policies
 
 from harv_jax.aircraft import harv
-from harv_jax.control.gate import certificate_bounds, gate, signed_residual
+from harv_jax.control.gate import certificate_bounds, gate, inv3, signed_residual
 from harv_jax.control.hybrid import HybridConfig, default_hybrid_gains, make_hybrid
 from harv_jax.control.safety import limit_box
 from harv_jax.control.smc import SMCConfig, smc_command
@@ -199,3 +199,15 @@ def test_mc_cli_flies_the_gated_hybrid_and_summarizes_it(tmp_path):
     assert all(0.0 <= v <= 1.0 for v in h["zeta_mean_by_channel"].values())
     assert 0.0 <= h["policy_unmodified_fraction"] <= 1.0
     assert all(v is None or 0.0 <= v <= 1.0 for v in h["certificate"]["holds_saturated"].values())
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_inv3_equals_lapack_to_condition_times_rounding(dtype):
+    a = np.random.default_rng(0).normal(size=(2000, 3, 3))
+    with jax.enable_x64(dtype == np.float64):
+        got = np.asarray(jax.vmap(inv3)(jnp.asarray(a, dtype)), np.float64)
+    ref = np.linalg.inv(a)
+    err = np.max(np.abs(got - ref), axis=(1, 2)) / np.max(np.abs(ref), axis=(1, 2))
+    assert np.all(err <= 8.0 * np.linalg.cond(a) * np.finfo(dtype).eps)
+    singular = inv3(jnp.array([[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [0.0, 1.0, 1.0]]))
+    assert not np.all(np.isfinite(np.asarray(singular)))  # the gate then falls back to the SMC command
