@@ -41,7 +41,7 @@ import datetime as _dt
 import platform
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root, for benchmarks.*
@@ -223,48 +223,49 @@ def bench_envelope(name: str, ctrl, n: int, n_steps: int, chunk: int | None, see
     }
 
 
+def _pairs(
+    rows: list[dict], env_rows: list[dict], base: str, is_other: Callable[[str], bool]
+) -> Iterator[tuple[str, dict, dict]]:
+    """Per study (``mc``, ``envelope``) and controller: (``<study>_<controller>``, the row of implementation
+    ``base``, a row whose implementation passes ``is_other``)."""
+    for study, items in (("mc", rows), ("envelope", env_rows)):
+        by = {(r["controller"], r["implementation"]): r for r in items}
+        for (name, impl), other in by.items():
+            first = by.get((name, base))
+            if first is not None and impl != base and is_other(impl):
+                yield f"{study}_{name}", first, other
+
+
 def before_after(rows: list[dict], env_rows: list[dict]) -> dict[str, dict[str, float]]:
     """Per controller and study (``mc``, ``envelope``): compile and run seconds of the reference (before
     issue 18) and the current implementation, and run-time speed-up = reference / current."""
-    out = {}
-    for study, items in (("mc", rows), ("envelope", env_rows)):
-        by = {(r["controller"], r["implementation"]): r for r in items}
-        for (name, impl), cur in by.items():
-            ref = by.get((name, "reference"))
-            if impl != "current" or ref is None:
-                continue
-            out[f"{study}_{name}"] = {
-                "compile_s_before": ref["compile_s"],
-                "compile_s_after": cur["compile_s"],
-                "run_s_before": ref["run_s"],
-                "run_s_after": cur["run_s"],
-                "run_speedup": ref["run_s"] / cur["run_s"],
-            }
-    return out
+    return {
+        key: {
+            "compile_s_before": ref["compile_s"],
+            "compile_s_after": cur["compile_s"],
+            "run_s_before": ref["run_s"],
+            "run_s_after": cur["run_s"],
+            "run_speedup": ref["run_s"] / cur["run_s"],
+        }
+        for key, ref, cur in _pairs(rows, env_rows, "reference", lambda impl: impl == "current")
+    }
 
 
 def chunk_comparison(rows: list[dict], env_rows: list[dict]) -> dict[str, dict[str, float]]:
     """Per controller and study: run seconds with ``--compare-chunk`` and with ``--chunk`` (same process,
     alternating), and the speed-up = compare / chunk."""
-    out = {}
-    for study, items in (("mc", rows), ("envelope", env_rows)):
-        for r in items:
-            other = next(
-                (o for o in items if o["controller"] == r["controller"] and o["implementation"] == "current"),
-                None,
-            )
-            if other is None or not r["implementation"].startswith("current_chunk_"):
-                continue
-            out[f"{study}_{r['controller']}"] = {
-                "chunk_compared": r["chunk"],
-                "chunk": other["chunk"],
-                "run_s_compared": r["run_s"],
-                "run_s": other["run_s"],
-                "run_speedup": r["run_s"] / other["run_s"],
-                "compile_s_compared": r["compile_s"],
-                "compile_s": other["compile_s"],
-            }
-    return out
+    return {
+        key: {
+            "chunk_compared": r["chunk"],
+            "chunk": cur["chunk"],
+            "run_s_compared": r["run_s"],
+            "run_s": cur["run_s"],
+            "run_speedup": r["run_s"] / cur["run_s"],
+            "compile_s_compared": r["compile_s"],
+            "compile_s": cur["compile_s"],
+        }
+        for key, cur, r in _pairs(rows, env_rows, "current", lambda impl: impl.startswith("current_chunk_"))
+    }
 
 
 @contextlib.contextmanager
