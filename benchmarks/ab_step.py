@@ -8,7 +8,10 @@ Usage::
 Each tree's ``benchmarks/bench_step.build`` compiles its own plant, controllers and step loops (batch 1000,
 50 steps per call, the Monte Carlo's reset states); the compiled loops of both trees are then timed
 interleaved, ``--repeats`` times each, and the best time is used, so a slow spell of the machine hits both
-trees alike. Kinds: ``smc``, ``hybrid`` (continuous), and with any of ``hybrid_gated``, ``hybrid_simplex``,
+trees alike. With ``--copies N`` each tree is built N times (builds alternating between the trees) and the
+median over the copies of each copy's best time is used: on a shared virtual machine two executables of
+the same code differed by up to ~10% in best time, so one copy per tree cannot resolve changes that small.
+Kinds: ``smc``, ``hybrid`` (continuous), and with any of ``hybrid_gated``, ``hybrid_simplex``,
 ``hybrid_simplex_zero_policy``, ``rl`` the whole gated set. Results go to
 ``benchmarks/results/ab_step_<machine>.json``.
 """
@@ -21,6 +24,8 @@ import os
 import sys
 import time
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -60,6 +65,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--batch", type=int, default=1000)
     ap.add_argument("--steps", type=int, default=50, help="steps per timed call")
     ap.add_argument("--repeats", type=int, default=11)
+    ap.add_argument("--copies", type=int, default=1, help="builds per tree (median of their best times)")
     ap.add_argument("--machine", default=None)
     ap.add_argument("--note", default="")
     ap.add_argument("--out-dir", type=Path, default=ROOT / "benchmarks" / "results")
@@ -70,24 +76,39 @@ def main(argv: list[str] | None = None) -> dict:
     bad = [k for k in kinds if k not in allowed]
     if len(trees) != 2 or bad or "smc" not in kinds:
         ap.error(f"--trees needs two trees and --kinds smc plus any of {', '.join(allowed[1:])} (got {bad})")
+    if args.copies < 1:
+        ap.error(f"--copies {args.copies}: allowed: an integer >= 1")
 
     import jax
 
     load_before = load_average_1min()
-    built = {(t, k): b for t in trees for k, b in build_tree(t, kinds, args.batch, args.steps).items()}
+    built = {
+        (t, c, k): b
+        for c in range(args.copies)
+        for t in trees
+        for k, b in build_tree(t, kinds, args.batch, args.steps).items()
+    }
     times = {key: [] for key in built}
     for _ in range(args.repeats):
         for key, b in built.items():
             t0 = time.perf_counter()
             jax.block_until_ready(b["compiled"](*b["args"]))
             times[key].append(time.perf_counter() - t0)
-    us = {key: 1e6 * min(v) / args.steps for key, v in times.items()}
+    per_copy = {key: 1e6 * min(v) / args.steps for key, v in times.items()}
+    us = {
+        (t, k): float(np.median([per_copy[(t, c, k)] for c in range(args.copies)]))
+        for t in trees
+        for k in ["plant", *kinds]
+    }
     rows = {}
     for label, tree in zip(("before", "after"), trees, strict=True):
         rows[label] = {
             "tree": str(tree),
             "us_per_step": {k: us[(tree, k)] for k in ["plant", *kinds]},
-            "compile_s": {k: built[(tree, k)]["compile_s"] for k in ["plant", *kinds]},
+            "us_per_step_each_copy": {
+                k: [per_copy[(tree, c, k)] for c in range(args.copies)] for k in ["plant", *kinds]
+            },
+            "compile_s": {k: built[(tree, 0, k)]["compile_s"] for k in ["plant", *kinds]},
             "over_smc": {k: us[(tree, k)] / us[(tree, "smc")] for k in kinds if k != "smc"},
         }
         print(label, {k: round(v, 1) for k, v in rows[label]["us_per_step"].items()}, flush=True)
@@ -99,9 +120,13 @@ def main(argv: list[str] | None = None) -> dict:
             "batch": args.batch,
             "steps_per_call": args.steps,
             "repeats": args.repeats,
+            "copies": args.copies,
             "kinds": kinds,
         },
-        "method": "benchmarks.bench_step.build from each tree in one process; interleaved best-of-repeats",
+        "method": (
+            "benchmarks.bench_step.build from each tree in one process (--copies builds each); interleaved "
+            "best-of-repeats per build, median over the builds"
+        ),
         "results": rows,
         "speedup_after_over_before": speedup,
     }

@@ -2,16 +2,20 @@
 
 Usage::
 
-    python benchmarks/bench_step.py [--batch 1000] [--steps 100] [--repeats 11] [--quick] [--no-reference]
+    python benchmarks/bench_step.py [--batch 1000] [--steps 100] [--repeats 11] [--copies 1] [--quick]
+        [--no-reference]
 
 What is timed (one XLA device, ``jit(vmap(lax.scan of --steps steps))`` over ``--batch`` aircraft from the
 Monte Carlo's reset bounds): a *plant step* (``to_wind``, actuator, RK4, the non-finite guard; the command is
 held) and a *closed-loop step* of the SMC and of the hybrid (the same plus ``controller.apply``), as
 ``closed_loop`` runs them. The variants run interleaved, ``--repeats`` times each, and the best time is used,
-so the ratios hold on a busy machine. With the test references importable (``tests/speed_reference.py``,
-the implementation before issue 18: one linearization with 7 tangents, a LAPACK SVD per aircraft, the
-previous aero/atmosphere/forces) the same steps are also built from them ("reference"). XLA's cost
-analysis of one step of one aircraft (FLOPs, transcendentals) and the compile times are recorded.
+so the ratios hold on a busy machine. ``--copies N`` builds the current steps N times and uses the median of
+each build's best time (on a shared virtual machine two executables of the same code differed by up to ~10%;
+each build's times are kept under ``us_per_step_each_copy``). With the test references importable
+(``tests/speed_reference.py``, the implementation before issue 18: one linearization with 7 tangents, a
+LAPACK SVD per aircraft, the previous aero/atmosphere/forces) the same steps are also built from them
+("reference"). XLA's cost analysis of one step of one aircraft (FLOPs, transcendentals) and the compile
+times are recorded.
 Results go to ``benchmarks/results/step_<machine>.json``.
 """
 
@@ -19,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -142,6 +147,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument(
         "--repeats", type=int, default=11, help="interleaved timed calls per variant (best is used)"
     )
+    ap.add_argument("--copies", type=int, default=1, help="builds of the current steps (median of bests)")
     ap.add_argument("--policy", default=None, help="the hybrid's policy (default: the shipped policy)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--no-reference", action="store_true", help="skip the pre-issue-18 reference steps")
@@ -152,6 +158,8 @@ def main(argv: list[str] | None = None) -> dict:
     args = ap.parse_args(argv)
     if args.quick:
         args.steps, args.repeats = 50, 5
+    if args.copies < 1:
+        ap.error(f"--copies {args.copies}: allowed: an integer >= 1")
 
     import jax
 
@@ -159,7 +167,8 @@ def main(argv: list[str] | None = None) -> dict:
     machine = machine_name(args.machine)
     load_before = load_average_1min()
     print(f"device {dev.platform}:{dev.device_kind}  jax {jax.__version__}  cpu {cpu_model()}", flush=True)
-    sets = {"current": build(args.batch, args.steps, args.policy, args.seed, gated=True)}
+    copies = {c: build(args.batch, args.steps, args.policy, args.seed, True) for c in range(args.copies)}
+    sets = {"current": copies[0]}
     skipped = None
     if not args.no_reference:
         try:
@@ -171,22 +180,28 @@ def main(argv: list[str] | None = None) -> dict:
         except ImportError as e:  # tests/ or pytest absent: the current implementation only
             skipped = f"reference not built: {e}"
             print(skipped, flush=True)
-    times = {(s, k): [] for s in sets for k in sets[s]}
+    timed = {("current", c): b for c, b in copies.items()}
+    timed |= {(s, 0): b for s, b in sets.items() if s != "current"}
+    times = {(s, c, k): [] for (s, c), built in timed.items() for k in built}
     for _ in range(args.repeats):
-        for s, built in sets.items():
+        for (s, c), built in timed.items():
             for k, b in built.items():
                 t0 = time.perf_counter()
                 jax.block_until_ready(b["compiled"](*b["args"]))
-                times[(s, k)].append(time.perf_counter() - t0)
+                times[(s, c, k)].append(time.perf_counter() - t0)
+    best_us = {key: 1e6 * min(v) / args.steps for key, v in times.items()}
     rows = {}
     for s, built in sets.items():
-        us = {k: 1e6 * min(times[(s, k)]) / args.steps for k in built}
+        n_copies = args.copies if s == "current" else 1
+        each = {k: [best_us[(s, c, k)] for c in range(n_copies)] for k in built}
+        us = {k: float(statistics.median(each[k])) for k in built}
         rows[s] = {
             k: {
                 "us_per_step": us[k],
                 "aircraft_steps_per_s": args.batch * 1e6 / us[k],
                 "compile_s": built[k]["compile_s"],
                 "step_cost_one_aircraft": built[k]["step_cost"],
+                **({"us_per_step_each_copy": each[k]} if n_copies > 1 else {}),
             }
             for k in built
         }
@@ -220,13 +235,14 @@ def main(argv: list[str] | None = None) -> dict:
             "batch": args.batch,
             "steps_per_call": args.steps,
             "repeats": args.repeats,
+            "copies": args.copies,
             "dt_s": DT_S,
             "policy": args.policy or DEFAULT_POLICY_SPEC,
             "seed": args.seed,
             "dtype": "float32",
             "devices_used": 1,
         },  # fmt: skip
-        "method": "interleaved best-of-repeats of jit(vmap(scan)) per variant; see the module docstring",
+        "method": "interleaved best-of-repeats of jit(vmap(scan)) per variant and build; median of --copies",
         "results": rows,
         "skipped": skipped,
         "targets": {k: {"target": v, "value": ratios[k], "met": ratios[k] <= v} for k, v in TARGETS.items()},
