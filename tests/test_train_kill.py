@@ -137,13 +137,15 @@ def _spin(seconds: float) -> None:
 
 
 def test_watchdog_wall_limit_and_beats():
-    dog, fired, reasons = _watch(limit_s=0.6, idle_s=0)
+    # limit 12x the beat interval: on a shared 2-core VM under the full suite, a 0.6 s limit with beats every
+    # 0.2 s fired once (the process paused for > 0.4 s between beats)
+    dog, fired, reasons = _watch(limit_s=1.2, idle_s=0)
     with dog:
-        for _ in range(8):  # progress every 0.2 s keeps it quiet
-            _spin(0.2)
+        for _ in range(16):  # progress every 0.1 s keeps it quiet
+            _spin(0.1)
             dog.beat()
         assert not fired.is_set()
-        assert fired.wait(5.0)  # no more beats: stall after 0.6 s
+        assert fired.wait(5.0)  # no more beats: stall after 1.2 s
     assert "no progress for" in reasons[0] and "limit 1 s" in reasons[0]
 
 
