@@ -138,7 +138,7 @@ def _spin(seconds: float) -> None:
 
 def test_watchdog_wall_limit_and_beats():
     # limit 12x the beat interval: on a shared 2-core VM under the full suite, a 0.6 s limit with beats every
-    # 0.2 s fired once (the process paused for > 0.4 s between beats)
+    # 0.2 s fired once (two beats more than 0.6 s apart)
     dog, fired, reasons = _watch(limit_s=1.2, idle_s=0)
     with dog:
         for _ in range(16):  # progress every 0.1 s keeps it quiet
