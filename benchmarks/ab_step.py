@@ -21,17 +21,15 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import statistics
 import sys
-import time
 from pathlib import Path
-
-import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=1")
 
-from benchmarks.common import load_average_1min, machine_name, result_header, write_json  # noqa: E402
+from benchmarks.common import best_us_per_step, load_average_1min, machine_name, result_header, write_json  # noqa: E402
 
 GATED_KINDS = ("hybrid_gated", "hybrid_simplex", "hybrid_simplex_zero_policy", "rl")
 
@@ -79,8 +77,6 @@ def main(argv: list[str] | None = None) -> dict:
     if args.copies < 1:
         ap.error(f"--copies {args.copies}: allowed: an integer >= 1")
 
-    import jax
-
     load_before = load_average_1min()
     built = {
         (t, c, k): b
@@ -88,15 +84,9 @@ def main(argv: list[str] | None = None) -> dict:
         for t in trees
         for k, b in build_tree(t, kinds, args.batch, args.steps).items()
     }
-    times = {key: [] for key in built}
-    for _ in range(args.repeats):
-        for key, b in built.items():
-            t0 = time.perf_counter()
-            jax.block_until_ready(b["compiled"](*b["args"]))
-            times[key].append(time.perf_counter() - t0)
-    per_copy = {key: 1e6 * min(v) / args.steps for key, v in times.items()}
+    per_copy = best_us_per_step(built, args.repeats, args.steps)
     us = {
-        (t, k): float(np.median([per_copy[(t, c, k)] for c in range(args.copies)]))
+        (t, k): statistics.median(per_copy[(t, c, k)] for c in range(args.copies))
         for t in trees
         for k in ["plant", *kinds]
     }

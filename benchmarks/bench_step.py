@@ -32,7 +32,14 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # the repository root, for benchmarks.*
 os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=1")
 
-from benchmarks.common import cpu_model, load_average_1min, machine_name, result_header, write_json  # noqa: E402
+from benchmarks.common import (  # noqa: E402
+    best_us_per_step,
+    cpu_model,
+    load_average_1min,
+    machine_name,
+    result_header,
+    write_json,
+)
 from harv_jax.policies import DEFAULT_POLICY_SPEC  # noqa: E402
 
 DT_S = 0.01
@@ -182,14 +189,8 @@ def main(argv: list[str] | None = None) -> dict:
             print(skipped, flush=True)
     timed = {("current", c): b for c, b in copies.items()}
     timed |= {(s, 0): b for s, b in sets.items() if s != "current"}
-    times = {(s, c, k): [] for (s, c), built in timed.items() for k in built}
-    for _ in range(args.repeats):
-        for (s, c), built in timed.items():
-            for k, b in built.items():
-                t0 = time.perf_counter()
-                jax.block_until_ready(b["compiled"](*b["args"]))
-                times[(s, c, k)].append(time.perf_counter() - t0)
-    best_us = {key: 1e6 * min(v) / args.steps for key, v in times.items()}
+    calls = {(s, c, k): b for (s, c), built in timed.items() for k, b in built.items()}
+    best_us = best_us_per_step(calls, args.repeats, args.steps)
     rows = {}
     for s, built in sets.items():
         n_copies = args.copies if s == "current" else 1

@@ -94,3 +94,19 @@ def result_header(
         },
         "load_average_1min_before_after": [load_before, load_average_1min()],
     }
+
+
+def best_us_per_step(calls: dict[Any, dict], repeats: int, n_steps: int) -> dict[Any, float]:
+    """Best µs per step of each entry's ``compiled(*args)`` (``n_steps`` steps per call), the entries called
+    in turn ``repeats`` rounds over, so that a slow spell of the machine hits them alike."""
+    import time
+
+    import jax
+
+    times: dict[Any, list[float]] = {key: [] for key in calls}
+    for _ in range(repeats):
+        for key, b in calls.items():
+            t0 = time.perf_counter()
+            jax.block_until_ready(b["compiled"](*b["args"]))
+            times[key].append(time.perf_counter() - t0)
+    return {key: 1e6 * min(v) / n_steps for key, v in times.items()}
