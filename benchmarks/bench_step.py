@@ -8,14 +8,16 @@ Usage::
 What is timed (one XLA device, ``jit(vmap(lax.scan of --steps steps))`` over ``--batch`` aircraft from the
 Monte Carlo's reset bounds): a *plant step* (``to_wind``, actuator, RK4, the non-finite guard; the command is
 held) and a *closed-loop step* of the SMC and of the hybrid (the same plus ``controller.apply``), as
-``closed_loop`` runs them. The variants run interleaved, ``--repeats`` times each, and the best time is used,
-so the ratios hold on a busy machine. ``--copies N`` builds the current steps N times and uses the median of
-each build's best time (on a shared virtual machine two executables of the same code differed by up to ~10%;
-each build's times are kept under ``us_per_step_each_copy``). With the test references importable
-(``tests/speed_reference.py``, the implementation before issue 18: one linearization with 7 tangents, a
-LAPACK SVD per aircraft, the previous aero/atmosphere/forces) the same steps are also built from them
-("reference"). XLA's cost analysis of one step of one aircraft (FLOPs, transcendentals) and the compile
-times are recorded.
+``closed_loop`` runs them; and the policy's observation and forward pass alone (``policy_forward``, what the
+policy adds to a hybrid step; ``zero_policy_plus_forward_over_smc`` is the simplex hybrid's cost if its own
+logic and the policy ran one after another). The variants run interleaved, ``--repeats`` times each, and the
+best time is used, so the ratios hold on a busy machine. ``--copies N`` builds the current steps N times and
+uses the median of each build's best time (on a shared virtual machine two executables of the same code
+differed by up to ~10%; each build's times are kept under ``us_per_step_each_copy``). With the test
+references importable (``tests/speed_reference.py``, the implementation before issue 18: one linearization
+with 7 tangents, a LAPACK SVD per aircraft, the previous aero/atmosphere/forces) the same steps are also
+built from them ("reference"). XLA's cost analysis of one step of one aircraft (FLOPs, transcendentals) and
+the compile times are recorded.
 Results go to ``benchmarks/results/step_<machine>.json``.
 """
 
@@ -64,7 +66,8 @@ def build(
 
     ``controllers``: the continuous-schedule controllers to build (``smc``, ``hybrid``); ``gated`` adds
     ``hybrid_gated``, ``hybrid_simplex``, ``hybrid_simplex_zero_policy`` (the simplex hybrid with a policy
-    that costs nothing: the hybrid's own logic) and ``rl`` (the policy alone).
+    that costs nothing: the hybrid's own logic), ``rl`` (the policy flying alone) and ``policy_forward`` (the
+    wind view, observation and forward pass of the policy, no plant: what the policy adds to a hybrid step).
     """
     import jax
     import jax.numpy as jnp
@@ -131,6 +134,17 @@ def build(
     for name, ctrl in ctrls.items():
         cstate0 = jax.vmap(ctrl.init)(params)
         variants[name] = (closed_step(ctrl), 3, (body0, delta0, cstate0, params))
+    if gated:  # the policy's observation and forward pass alone, no plant: what the hybrid adds to its logic
+        from harv_jax.policy import resolve_policy
+        from harv_jax.task.spaces import observation
+
+        act = resolve_policy(policy or DEFAULT_POLICY_SPEC).deterministic
+
+        def policy_step(state, delta, prm):  # the observation reads the carry: no pass is loop-invariant
+            a = jnp.clip(act(observation(to_wind(state), reference + 1e-6 * delta)), -1.0, 1.0)
+            return state, delta + 1e-9 * a
+
+        variants["policy_forward"] = (policy_step, 2, (body0, delta0, params))
     for name, (step, n_carry, args) in variants.items():
         t0 = time.perf_counter()
         compiled = loop(step, n_carry).lower(*args).compile()
@@ -210,9 +224,13 @@ def main(argv: list[str] | None = None) -> dict:
             "smc_over_plant": us["smc"] / us["plant"],
             "hybrid_over_smc": us["hybrid"] / us["smc"],
         }
-        for k in ("hybrid_gated", "hybrid_simplex", "hybrid_simplex_zero_policy", "rl"):
+        for k in ("hybrid_gated", "hybrid_simplex", "hybrid_simplex_zero_policy", "rl", "policy_forward"):
             if k in us:
                 rows[s]["ratios"][f"{k}_over_smc"] = us[k] / us["smc"]
+        if "policy_forward" in us:  # the simplex hybrid's cost if its logic and the policy ran in sequence
+            rows[s]["ratios"]["zero_policy_plus_forward_over_smc"] = (
+                us["hybrid_simplex_zero_policy"] + us["policy_forward"]
+            ) / us["smc"]
         print(
             f"{s:>9}: plant {us['plant']:.0f} us/step, smc {us['smc']:.0f}, hybrid {us['hybrid']:.0f} "
             f"(batch {args.batch}): smc/plant {us['smc'] / us['plant']:.2f}, hybrid/smc "
@@ -226,9 +244,12 @@ def main(argv: list[str] | None = None) -> dict:
             k: ref[k]["us_per_step"] / cur[k]["us_per_step"] for k in ("plant", "smc", "hybrid")
         }
         print(f"speed-up over the reference: {rows['speedup_over_reference']}", flush=True)
-    for k in ("hybrid_gated", "hybrid_simplex", "hybrid_simplex_zero_policy", "rl"):
+    for k in ("hybrid_gated", "hybrid_simplex", "hybrid_simplex_zero_policy", "rl", "policy_forward"):
         if f"{k}_over_smc" in rows["current"]["ratios"]:
             print(f"{k} / smc: {rows['current']['ratios'][f'{k}_over_smc']:.2f}", flush=True)
+    if "zero_policy_plus_forward_over_smc" in rows["current"]["ratios"]:
+        r = rows["current"]["ratios"]["zero_policy_plus_forward_over_smc"]
+        print(f"(zero-policy hybrid + policy forward) / smc: {r:.2f}", flush=True)
     ratios = rows["current"]["ratios"]
     result = {
         **result_header("step", machine, args.note, load_before),

@@ -1,16 +1,41 @@
 #!/usr/bin/env bash
-# The GPU benchmark session (run on the lent H100 from the repository root, OUT set by the device tool).
-# Needs only what the GPU image has (jax, flax, optax, chex, typer, rich, matplotlib); no install.
+# The GPU benchmark session: issue 18's checks on a lent GPU, from the repository root.
+#   OUT    results folder (set by the device tool; default /tmp/harv_gpu_out)
+#   QUICK  1: each benchmark's --quick form (a dry run on any machine, a few minutes on 2 CPU cores)
+# Needs only what the GPU image has (jax, flax, optax, chex, typer, rich, matplotlib); no install. Each step
+# has its own time limit, so one slow or hung step leaves the others' JSON. At most 12 minutes (the limits below).
 set -uo pipefail
 export PYTHONPATH=$PWD PYTHONUNBUFFERED=1
 OUT=${OUT:-/tmp/harv_gpu_out}
-mkdir -p "$OUT/res"
-nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv | tee "$OUT/res/nvidia_smi.txt"
-python3 -c "import jax; print(jax.__version__, jax.devices())"
-python3 benchmarks/bench_dynamics.py --max-batch 1048576 --out-dir "$OUT/res" 2>&1 | tee "$OUT/res/bench_dynamics.log"
-python3 benchmarks/bench_env.py --out-dir "$OUT/res" 2>&1 | tee "$OUT/res/bench_env.log"
-python3 -m harv_jax.cli mc --controller smc --runs 1000 --chunk 1000 --out "$OUT/res/mc_smc_1000" 2>&1 | tee "$OUT/res/mc.log"
-python3 -m harv_jax.cli mc --controller smc --runs 10000 --chunk 10000 --out "$OUT/res/mc_smc_10000" 2>&1 | tee -a "$OUT/res/mc.log"
-python3 benchmarks/bench_train.py --out-dir "$OUT/res" 2>&1 | tee "$OUT/res/bench_train.log"
-tar czf "$OUT/gpu_bench.tgz" -C "$OUT" res
-ls -la "$OUT"
+QUICK=${QUICK:-0}
+RES="$OUT/res"
+mkdir -p "$RES"
+q() { [ "$QUICK" = 1 ] && echo "$1"; }
+
+step() {  # step NAME LIMIT_S COMMAND...: run with a time limit, log to $RES/NAME.log, record rc and seconds
+  local name=$1 limit=$2
+  shift 2
+  local t0=$SECONDS
+  timeout "$limit" "$@" >"$RES/$name.log" 2>&1
+  local rc=$?
+  echo "$name rc=$rc ${limit}s-limit took=$((SECONDS - t0))s" | tee -a "$RES/steps.txt"
+  tail -n 5 "$RES/$name.log"
+}
+
+(nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv || echo "no nvidia-smi") >"$RES/nvidia_smi.txt" 2>&1
+python3 -c "import jax; print(jax.__version__, jax.devices())" | tee "$RES/jax.txt"
+
+# the 1000-run Monte Carlo (target: hybrid <= 1 s run time) and the 100 x 100 envelope map, smc and hybrid,
+# compile and run separately (each call compiles again: 2 controllers x 3 compiles)
+step mc 300 python3 benchmarks/bench_mc.py --controllers smc,hybrid --envelope --repeats 2 $(q --quick) \
+  --out-dir "$RES"
+# PPO training throughput at the paper's network (target: >= 8M env-steps/s at 16,384 envs)
+step train 180 python3 benchmarks/bench_train.py --num-envs "$([ "$QUICK" = 1 ] && echo 64 || echo 4096,16384)" \
+  $(q --quick) --out-dir "$RES"
+# one closed-loop step: plant, SMC, hybrid variants (absolute times on the GPU)
+step step 150 python3 benchmarks/bench_step.py --batch "$([ "$QUICK" = 1 ] && echo 64 || echo 16384)" \
+  --no-reference $(q --quick) --out-dir "$RES"
+# dynamics throughput up to 2^20 aircraft
+step dynamics 90 python3 benchmarks/bench_dynamics.py --max-batch "$([ "$QUICK" = 1 ] && echo 256 || echo 1048576)" \
+  $(q --quick) --out-dir "$RES"
+ls -la "$RES"

@@ -12,7 +12,7 @@ library call (~10 ns per element). Two tools:
 
 Float64 and accelerators keep ``jnp.arctan2`` and no loops. Values equal the plain step's to float32
 rounding: after 100 steps of 1,024 tumbling aircraft, 2e-4 relative at most (the arctan2's last bits,
-amplified). The speed-ups, measured side by side, are in the README's "Speed" section.
+amplified). The speed-ups, measured side by side, are in `benchmarks/README.md` ("Speed log").
 """
 
 from __future__ import annotations
