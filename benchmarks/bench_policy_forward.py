@@ -67,7 +67,7 @@ def build(policy_spec: str, batch: int, n_steps: int, seed: int) -> dict:
     for i, layer in enumerate(hidden[1:], start=1):  # square hidden layers: h @ W maps h to its own shape
         w = layer["kernel"]
         if w.shape[0] == w.shape[1]:
-            w = w / jnp.linalg.norm(w, 2)  # spectral norm 1: the iterates neither overflow nor go subnormal
+            w = w / jnp.linalg.norm(w, 2)  # spectral norm 1: the iterates cannot grow over the passes
             x = jax.random.normal(k_h, (batch, w.shape[0]))
             parts[f"matmul_hidden_{i}"] = (loop(lambda x, w=w: x @ w), x, 2.0 * batch * w.size)
     parts["tanh_hidden"] = (loop(jnp.tanh), h, float(h.size))
