@@ -35,10 +35,12 @@ from benchmarks.common import (  # noqa: E402
 from harv_jax.policies import DEFAULT_POLICY_SPEC  # noqa: E402
 
 SQUARE_N = 1024
+SQUARE_PASSES = 10  # 1024^3 multiply-adds per pass: 10 passes per call are enough
 
 
-def build(policy_spec: str, batch: int, n_steps: int, seed: int) -> dict:
-    """Compiled loops of the forward pass and its parts, each with its argument and its work per pass."""
+def build(policy_spec: str, batch: int, n_steps: int, seed: int) -> tuple[dict, list[list[int]]]:
+    """Compiled loops of the forward pass and its parts (each with its argument, passes per call and work per
+    pass), and the network's layer shapes."""
     import jax
     import jax.numpy as jnp
 
@@ -63,21 +65,23 @@ def build(policy_spec: str, batch: int, n_steps: int, seed: int) -> dict:
 
     width = hidden[-1]["kernel"].shape[1]
     h = jnp.tanh(jax.random.normal(k_h, (batch, width)))
-    parts = {"forward": (loop(forward), obs, None)}
+    parts = {"forward": (loop(forward), obs, n_steps, None)}
     for i, layer in enumerate(hidden[1:], start=1):  # square hidden layers: h @ W maps h to its own shape
         w = layer["kernel"]
         if w.shape[0] == w.shape[1]:
             w = w / jnp.linalg.norm(w, 2)  # spectral norm 1: the iterates cannot grow over the passes
             x = jax.random.normal(k_h, (batch, w.shape[0]))
-            parts[f"matmul_hidden_{i}"] = (loop(lambda x, w=w: x @ w), x, 2.0 * batch * w.size)
-    parts["tanh_hidden"] = (loop(jnp.tanh), h, float(h.size))
-    parts["add_hidden"] = (loop(lambda x: x + 1e-3), h, float(h.size))
-    parts["matmul_square"] = (loop(lambda s: s @ square_w, 10), square_w, 2.0 * SQUARE_N**3)
-    out = {}
-    for name, (f, arg, work) in parts.items():
-        out[name] = {"compiled": f.lower(arg).compile(), "args": (arg,), "work": work}
-    out["_shapes"] = [list(v["kernel"].shape) for v in hidden] + [list(mlp["out"]["kernel"].shape)]
-    return out
+            parts[f"matmul_hidden_{i}"] = (loop(lambda x, w=w: x @ w), x, n_steps, 2.0 * batch * w.size)
+    parts["tanh_hidden"] = (loop(jnp.tanh), h, n_steps, float(h.size))
+    parts["add_hidden"] = (loop(lambda x: x + 1e-3), h, n_steps, float(h.size))
+    square = loop(lambda s: s @ square_w, SQUARE_PASSES)
+    parts["matmul_square"] = (square, square_w, SQUARE_PASSES, 2.0 * SQUARE_N**3)
+    built = {
+        name: {"compiled": f.lower(arg).compile(), "args": (arg,), "passes": passes, "work": work}
+        for name, (f, arg, passes, work) in parts.items()
+    }
+    shapes = [list(v["kernel"].shape) for v in hidden] + [list(mlp["out"]["kernel"].shape)]
+    return built, shapes
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -96,11 +100,9 @@ def main(argv: list[str] | None = None) -> dict:
             ap.error(f"--{flag} {getattr(args, flag)}: allowed: an integer >= 1")
 
     load_before = load_average_1min()
-    built = build(args.policy, args.batch, args.steps, args.seed)
-    layer_shapes = built.pop("_shapes")
-    calls = {k: v for k, v in built.items() if k != "matmul_square"}
-    us = best_us_per_step(calls, args.repeats, args.steps)
-    us["matmul_square"] = best_us_per_step({"m": built["matmul_square"]}, args.repeats, 10)["m"]
+    built, layer_shapes = build(args.policy, args.batch, args.steps, args.seed)
+    per_call = best_us_per_step(built, args.repeats, 1)  # all parts interleaved; then per pass
+    us = {name: per_call[name] / b["passes"] for name, b in built.items()}
     parts = {}
     for name, b in built.items():
         row = {"us_per_pass": us[name]}

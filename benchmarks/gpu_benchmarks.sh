@@ -10,7 +10,7 @@ OUT=${OUT:-/tmp/harv_gpu_out}
 QUICK=${QUICK:-0}
 RES="$OUT/res"
 mkdir -p "$RES"
-q() { [ "$QUICK" = 1 ] && echo "$1"; }
+pick() { if [ "$QUICK" = 1 ]; then echo "$1"; else echo "$2"; fi; }  # pick QUICK_VALUE FULL_VALUE
 
 step() {  # step NAME LIMIT_S COMMAND...: run with a time limit, log to $RES/NAME.log, record rc and seconds
   local name=$1 limit=$2
@@ -27,15 +27,15 @@ python3 -c "import jax; print(jax.__version__, jax.devices())" | tee "$RES/jax.t
 
 # the 1000-run Monte Carlo (target: hybrid <= 1 s run time) and the 100 x 100 envelope map, smc and hybrid,
 # compile and run separately (each call compiles again: 2 controllers x 3 compiles)
-step mc 300 python3 benchmarks/bench_mc.py --controllers smc,hybrid --envelope --repeats 2 $(q --quick) \
+step mc 300 python3 benchmarks/bench_mc.py --controllers smc,hybrid --envelope --repeats 2 $(pick --quick "") \
   --out-dir "$RES"
 # PPO training throughput at the paper's network (target: >= 8M env-steps/s at 16,384 envs)
-step train 180 python3 benchmarks/bench_train.py --num-envs "$([ "$QUICK" = 1 ] && echo 64 || echo 4096,16384)" \
-  $(q --quick) --out-dir "$RES"
+step train 180 python3 benchmarks/bench_train.py --num-envs "$(pick 64 4096,16384)" $(pick --quick "") \
+  --out-dir "$RES"
 # one closed-loop step: plant, SMC, hybrid variants (absolute times on the GPU)
-step step 150 python3 benchmarks/bench_step.py --batch "$([ "$QUICK" = 1 ] && echo 64 || echo 16384)" \
-  --no-reference $(q --quick) --out-dir "$RES"
+step step 150 python3 benchmarks/bench_step.py --batch "$(pick 64 16384)" --no-reference \
+  $(pick --quick "") --out-dir "$RES"
 # dynamics throughput up to 2^20 aircraft
-step dynamics 90 python3 benchmarks/bench_dynamics.py --max-batch "$([ "$QUICK" = 1 ] && echo 256 || echo 1048576)" \
-  $(q --quick) --out-dir "$RES"
+step dynamics 90 python3 benchmarks/bench_dynamics.py --max-batch "$(pick 256 1048576)" $(pick --quick "") \
+  --out-dir "$RES"
 ls -la "$RES"
