@@ -58,9 +58,7 @@ def use_all_cpu_cores() -> None:
 
 def main() -> None:
     """Console entry point: run the app; turn UsageError/ValueError into a one-line error, exit 2."""
-    # every command, train included, gets one XLA host device per core: with a single host device (no
-    # --xla_force_host_platform_device_count) multi-seed HARV training deadlocked in its first period in 4 of
-    # 4 runs, with two in 0 of 11 (experiments/ppo_sweep/README.md, "Known problem")
+    # one XLA host device per core: the Monte Carlo and the envelope map shard their runs over them
     use_all_cpu_cores()
     try:
         app(standalone_mode=False)

@@ -2,8 +2,9 @@
 did not write.
 
 Every directory :func:`prepare_out_dir` creates gets a marker file (:data:`MARKER`). ``--force`` replaces a
-non-empty directory only if it holds that marker, and never the current directory, one of its parents,
-the home directory or the filesystem root.
+non-empty directory only if it holds that marker, no other live harv-jax process holds its lock
+(:mod:`harv_jax.runlock`), and it is not the current directory, one of its parents, the home directory or
+the filesystem root. The folder :func:`prepare_out_dir` returns is locked by this process until it ends.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+from harv_jax import runlock
 from harv_jax.errors import UsageError
 
 #: Marker file written into every output directory a harv-jax command creates.
@@ -53,6 +55,12 @@ def check_force_target(path: str | Path) -> None:
         raise UsageError(
             f"{flag} is not empty and was not written by harv-jax (no {MARKER} file); --force replaces only "
             "harv-jax run folders: choose another --out or remove it yourself"
+        )
+    holder = runlock.is_held_by_other(out)
+    if holder is not None:
+        raise UsageError(
+            f"{flag} is in use by harv-jax {runlock.holder_text(holder)}; --force does not replace a folder "
+            "another harv-jax process is writing: wait for it to finish, stop it, or choose another --out"
         )
 
 
@@ -103,11 +111,22 @@ def prepare_out_dir(path: str | Path, force: bool = False) -> Path:
         UsageError: see :func:`check_out_dir`; or the folder cannot be created.
     """
     out = check_out_dir(path, force)
-    if out.is_dir() and any(out.iterdir()):
-        shutil.rmtree(out)  # check_out_dir allowed it: a marked, unprotected run folder
     try:
         out.mkdir(parents=True, exist_ok=True)
-        (out / MARKER).write_text("written by harv-jax; `--force` may replace this folder\n")
     except OSError as e:
         raise UsageError(f"--out {str(out)!r} cannot be created ({e.strerror or e})") from None
+    runlock.acquire(out)  # raises if another live harv-jax process took the folder since the check
+    if any(p.name not in runlock.LOCK_FILES for p in out.iterdir()):
+        check_force_target(out) if force else check_out_dir(out, force)  # re-checked under the lock
+        for child in out.iterdir():  # a marked, unprotected run folder that nobody else holds
+            if child.name in runlock.LOCK_FILES:
+                continue
+            if child.is_dir() and not child.is_symlink():
+                shutil.rmtree(child)
+            else:
+                child.unlink()
+    try:
+        (out / MARKER).write_text("written by harv-jax; `--force` may replace this folder\n")
+    except OSError as e:
+        raise UsageError(f"--out {str(out)!r} cannot be written ({e.strerror or e})") from None
     return out

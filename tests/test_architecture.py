@@ -99,6 +99,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "harv_jax.guards",
         "harv_jax.numfmt",
         "harv_jax.outdir",
+        "harv_jax.runlock",
         "harv_jax",
     ),
 )

@@ -1,15 +1,15 @@
-"""Stress test of ``harv-jax train`` on the CPU: many consecutive short runs, each with a time limit.
+"""Stress test of training on the CPU: many consecutive runs, each with a time limit.
 
 Usage::
 
-    nice -n 10 python experiments/train_stress/run.py [--runs 30] [--old-runs 0] [--steps 4096] \
-        [--num-envs 16] [--timeout-s 200] [--out experiments/train_stress/results/stress_train_cpu-2core.json]
+    nice -n 10 python experiments/train_stress/run.py [--runs 30] [--api-runs 0] [--preset smoke] \
+        [--seeds 1] [--steps 4096] [--num-envs 16] [--timeout-s 200] [--out results/NAME.json]
 
-Each run is a subprocess ``python -m harv_jax.cli train --preset smoke --steps S --num-envs N
---minibatches 4 --seed i --out TMP/run_i``, started the way a user starts it (the CLI sets up XLA itself).
-``--old-runs K`` adds K runs, interleaved with the others, in the configuration of the earlier hang report
-(``XLA_FLAGS=--xla_force_host_platform_device_count=<cores>``, the CLI's former setting for ``train``: one
-XLA host device per core while the trainer computes on one).
+Each ``cli`` run is a subprocess ``python -m harv_jax.cli train --preset P --steps S --seeds K
+[--num-envs N --minibatches 4] --seed i --out TMP/run_i``, started the way a user starts it. Each ``api``
+run (``--api-runs``) is ``api_run.py``: the README's Python-API recipe (``load_preset`` -> ``make_harv_env``
+-> ``make_train`` -> ``run_training``) in a fresh interpreter with ``XLA_FLAGS`` removed (jax's defaults).
+The arms are interleaved.
 
 A run that has not finished after ``--timeout-s`` (``timed_out``) has the native stacks of all its threads
 written with ``gdb -p PID -batch -ex "thread apply all bt"`` (if gdb is installed) next to the JSON, and is
@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 REPO = Path(__file__).resolve().parents[2]
+HERE = Path(__file__).resolve().parent
 
 
 def cpu_model() -> str:
@@ -76,15 +77,19 @@ def native_stacks(pid: int, path: Path) -> bool:
 
 
 def one_run(i: int, arm: str, args: argparse.Namespace, tmp: Path, out_dir: Path) -> dict[str, Any]:
-    """Run training ``i`` of ``arm`` ("current" or "old-flags"); returns its record."""
+    """Run training ``i`` of ``arm`` ("cli" or "api"); returns its record."""
     run = tmp / f"run_{i:03d}"
-    cmd = [sys.executable, "-m", "harv_jax.cli", "train", "--preset", args.preset,
-           "--steps", str(args.steps), "--num-envs", str(args.num_envs), "--minibatches", "4",
-           "--seed", str(i), "--out", str(run)]  # fmt: skip
     env = dict(os.environ)
-    if arm == "old-flags":
-        flag = f"--xla_force_host_platform_device_count={cores()}"
-        env["XLA_FLAGS"] = f"{env.get('XLA_FLAGS', '')} {flag}".strip()
+    if arm == "cli":
+        cmd = [sys.executable, "-m", "harv_jax.cli", "train", "--preset", args.preset]
+        cmd += ["--steps", str(args.steps)]
+        cmd += ["--seeds", str(args.seeds), "--seed", str(i), "--out", str(run)]
+        if args.num_envs:
+            cmd += ["--num-envs", str(args.num_envs), "--minibatches", "4"]
+    else:
+        cmd = [sys.executable, str(HERE / "api_run.py"), args.preset, str(args.steps), str(args.seeds)]
+        cmd.append(str(i))
+        env.pop("XLA_FLAGS", None)
     t0 = time.monotonic()
     err_path = tmp / f"run_{i:03d}.stderr"
     with open(err_path, "w") as err:
@@ -106,7 +111,7 @@ def one_run(i: int, arm: str, args: argparse.Namespace, tmp: Path, out_dir: Path
                 rc = proc.wait()
     wall = time.monotonic() - t0
     lines = err_path.read_text(errors="replace").strip().splitlines()
-    periods = sum(1 for line in lines if line.startswith("period "))
+    periods = sum(1 for line in lines if line.startswith("period "))  # api_run.py prints one per period
     record = {"run": i, "arm": arm, "seed": i, "returncode": rc, "wall_s": round(wall, 2),
               "timed_out": timed_out, "hung": hung,
               "watchdog_exit": watchdog_exit, "periods_done": periods, "gdb_stacks": stacks,
@@ -134,27 +139,28 @@ def summarize(records: list[dict[str, Any]]) -> dict[str, Any]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--runs", type=int, default=30, help="runs with the current CLI")
-    ap.add_argument("--old-runs", type=int, default=0, help="interleaved runs with the former XLA_FLAGS")
-    ap.add_argument("--preset", default="smoke")
+    ap.add_argument("--runs", type=int, default=30, help="runs of harv-jax train")
+    ap.add_argument("--api-runs", type=int, default=0, help="interleaved runs through the Python API")
+    ap.add_argument("--preset", default="smoke", help="preset name or .toml path")
+    ap.add_argument("--seeds", type=int, default=1, help="training seeds per run")
     ap.add_argument("--steps", type=int, default=4096)
-    ap.add_argument("--num-envs", type=int, default=16)
+    ap.add_argument("--num-envs", type=int, default=16, help="0: the preset's (cli arm only)")
     ap.add_argument("--timeout-s", type=float, default=200.0, help="a run longer than this is a hang")
     ap.add_argument("--watchdog-grace-s", type=float, default=240.0,
                     help="after a hang, wait this long for the watchdog (exit 3) before SIGKILL")  # fmt: skip
     ap.add_argument("--out", default="experiments/train_stress/results/stress_train_cpu-2core.json")
     args = ap.parse_args()
-    for name, low in (("runs", 0), ("old_runs", 0), ("steps", 1), ("num_envs", 1)):
+    for name, low in (("runs", 0), ("api_runs", 0), ("seeds", 1), ("steps", 1), ("num_envs", 0)):
         if getattr(args, name) < low:
             ap.error(f"--{name.replace('_', '-')} {getattr(args, name)} must be an integer >= {low}")
     if not args.timeout_s > 0 or not args.watchdog_grace_s >= 0:
         ap.error("--timeout-s must be > 0 and --watchdog-grace-s >= 0")
     out = (REPO / args.out) if not Path(args.out).is_absolute() else Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    # interleave: one old-flags run after every runs/old_runs current runs
-    arms = ["current"] * args.runs
-    for k in range(args.old_runs):
-        arms.insert(round((k + 1) * len(arms) / (args.old_runs + 1)), "old-flags")
+    # interleave: one api run after every runs/api_runs cli runs
+    arms = ["cli"] * args.runs
+    for k in range(args.api_runs):
+        arms.insert(round((k + 1) * len(arms) / (args.api_runs + 1)), "api")
     started = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     load_start = os.getloadavg()
     records = []
@@ -182,15 +188,15 @@ def main() -> None:
         "parent_xla_flags": os.environ.get("XLA_FLAGS", ""),
         "settings": {
             "preset": args.preset,
+            "seeds": args.seeds,
             "steps": args.steps,
-            "num_envs": args.num_envs,
-            "minibatches": 4,
+            "num_envs": args.num_envs or "preset",
             "timeout_s": args.timeout_s,
             "watchdog_grace_s": args.watchdog_grace_s,
-        },  # fmt: skip
+        },
         "arms": {
-            "current": "harv-jax train as shipped (one XLA host device for train)",
-            "old-flags": f"XLA_FLAGS=--xla_force_host_platform_device_count={cores()} (former CLI setting)",
+            "cli": "harv-jax train as shipped",
+            "api": "the README's Python-API recipe (api_run.py), XLA_FLAGS unset: jax's defaults",
         },
         "summary": {arm: summarize([r for r in records if r["arm"] == arm]) for arm in sorted(set(arms))},
         "records": records,

@@ -110,6 +110,18 @@ class PPONetworks(NamedTuple):
         dummy = jnp.zeros((1, self.observation_size), jnp.float32)
         return PPOParams(self.actor.init(key_policy, dummy), self.critic.init(key_value, dummy))
 
+    def init_seeds(self, keys: jax.Array) -> PPOParams:
+        """Initialise one pair of networks per key of ``keys`` [S] (leading [S] axis on every leaf).
+
+        The seeds are initialised one after the other (``lax.map``), not vmapped: the orthogonal
+        initialiser is a LAPACK QR, and a batch of QRs is split by jaxlib's CPU kernel into tasks on XLA's
+        intra-op thread pool while the calling pool worker blocks until they finish. When every worker of
+        the pool holds such a batched QR (several layers factorised at once, e.g. 2 workers on a 2-core
+        machine), nothing is left to run the tasks and the program never completes. One matrix at a time
+        runs inline. The result equals ``jax.vmap(self.init)(keys)`` bit for bit.
+        """
+        return jax.lax.map(self.init, keys)
+
     def policy(self, params: PPOParams, obs: jax.Array) -> tuple[jax.Array, jax.Array]:
         """obs [..., O] (already normalised) -> (mean [..., A], log_std [..., A])."""
         return self.actor.apply(params.policy, obs)

@@ -25,9 +25,7 @@ ENV_AXIS = "envs"
 def default_devices() -> list[jax.Device]:
     """Devices to shard envs over by default: all of them on accelerators, one on CPU.
 
-    On CPU one device already uses every core (XLA's intra-op thread pool). Several host devices
-    (``--xla_force_host_platform_device_count``) combined with several seeds deadlocked inside XLA's CPU
-    runtime in our runs with the HARV env (jax 0.10.2; the toy env did not), so CPU sharding is opt-in:
+    On CPU one device already uses every core (XLA's intra-op thread pool), so CPU sharding is opt-in:
     pass ``devices`` explicitly.
     """
     devices = jax.devices()

@@ -66,6 +66,9 @@ def _prepare(run_dir: Path, out: Path | None, force: bool) -> Path:
             raise UsageError(
                 f"{', '.join(existing)} already exist in {str(run_dir)!r}; pass --force or choose --out"
             )
+        from harv_jax import runlock
+
+        runlock.acquire(run_dir, "RUN_DIR")  # refused while another harv-jax process writes there
         return run_dir
     if run_dir.resolve().is_relative_to(out.resolve()):
         raise UsageError(f"--out {str(out)!r} contains RUN_DIR {str(run_dir)!r}; choose another directory")
