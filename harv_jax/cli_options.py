@@ -44,6 +44,24 @@ STATE_LIMITS = {
 }  # fmt: skip
 
 
+def whole_number(text: str) -> int:
+    """``parser=`` of an int option: the text as an int; BadParameter naming the text if it is none (the
+    CLI prints ``Invalid value for '--runs': 'nan' is not a whole number``)."""
+    try:
+        return int(text)
+    except (TypeError, ValueError):
+        raise typer.BadParameter(f"{text!r} is not a whole number") from None
+
+
+def real_number(text: str) -> float:
+    """``parser=`` of a float option: the text as a float (``nan``/``inf`` pass, for the range checks to name
+    them); BadParameter naming the text if it is no number."""
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        raise typer.BadParameter(f"{text!r} is not a number") from None
+
+
 def policy_option():
     """``--policy`` (default None = the default shipped policy, ``shipped:fast``)."""
     return typer.Option(None, help=POLICY_HELP)
@@ -110,33 +128,54 @@ def validate_state(state: dict[str, float]) -> None:
             raise UsageError(f"state {name}={v} {unit} is outside the allowed [{lo:g}, {hi:g}] {unit}")
 
 
+#: Columns a state file may hold besides the state: those of a ``harv-jax simulate`` trajectory.csv (ignored).
+IGNORED_STATE_COLUMNS = ("t", "de", "da", "dr")
+
+
 def _read_state_raw(path: Path) -> dict:
-    text = path.read_text()
+    name = str(path)
+    if path.suffix.lower() not in (".json", ".csv"):
+        raise UsageError(f"state file {name!r} must end in .json or .csv")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise UsageError(f"state file {name!r} is not UTF-8 text; expected JSON or CSV") from None
+    except OSError as e:
+        raise UsageError(f"state file {name!r} cannot be read ({e.strerror or type(e).__name__})") from None
+    if not text.strip():
+        raise UsageError(f"state file {name!r} is empty; needs {', '.join(REQUIRED_STATE_NAMES)}")
     if path.suffix.lower() == ".json":
         try:
             raw = json.loads(text)
         except json.JSONDecodeError as e:
-            raise UsageError(f"state file {str(path)!r} is not valid JSON: {e.msg}") from None
+            raise UsageError(f"state file {name!r} is not valid JSON: {e.msg}") from None
+        except RecursionError:
+            raise UsageError(f"state file {name!r} is nested too deeply; expected {{name: value}}") from None
         if not isinstance(raw, dict):
-            raise UsageError(f"state file {str(path)!r} must hold a JSON object of name: value")
+            raise UsageError(f"state file {name!r} must hold a JSON object of name: value")
+        for k, v in raw.items():
+            if isinstance(v, bool) or not isinstance(v, int | float):
+                raise UsageError(f"state file {name!r}: {k}={v!r} is not a number")
         return raw
-    if path.suffix.lower() == ".csv":
-        lines = [ln for ln in text.splitlines() if ln.strip()]
-        if len(lines) < 2:
-            raise UsageError(f"state file {str(path)!r} needs a header row and a data row")
-        names = [s.strip() for s in lines[0].split(",")]
-        values = [s.strip() for s in lines[1].split(",")]
-        if len(values) != len(names):
-            raise UsageError(f"state file {str(path)!r}: {len(names)} header names but {len(values)} values")
-        return dict(zip(names, values, strict=True))
-    raise UsageError(f"state file {str(path)!r} must end in .json or .csv")
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    if len(lines) < 2:
+        raise UsageError(f"state file {name!r} needs a header row and a data row")
+    names = [s.strip() for s in lines[0].split(",")]
+    values = [s.strip() for s in lines[1].split(",")]
+    if len(values) != len(names):
+        raise UsageError(f"state file {name!r}: {len(names)} header names but {len(values)} values")
+    if len(set(names)) != len(names):
+        raise UsageError(f"state file {name!r}: a header name appears twice ({', '.join(names)})")
+    return dict(zip(names, values, strict=True))
 
 
 def load_state_file(path: Path) -> dict[str, float]:
     """Initial wind state from a JSON object or a CSV with a header row (first data row is used).
 
     Required names: V, alpha, beta, p, q, r, mu, gamma (ft/s, rad, rad/s); optional chi (rad, 0) and
-    h (ft, 25,000). Extra columns (e.g. t, de in a ``harv-jax simulate`` trajectory.csv) are ignored.
+    h (ft, 25,000). The columns t, de, da, dr of a ``harv-jax simulate`` trajectory.csv are ignored; any other
+    name, a missing one, a value that is not a finite number or a state outside :data:`STATE_LIMITS` is a
+    UsageError.
     """
     if not path.is_file():
         raise UsageError(
@@ -144,20 +183,29 @@ def load_state_file(path: Path) -> dict[str, float]:
         )
     raw = _read_state_raw(path)
     state = {"chi": 0.0, "h": H0_FT}
+    known = (*REQUIRED_STATE_NAMES, "chi", "h")
+    unknown = [n for n in raw if n not in known and n not in IGNORED_STATE_COLUMNS]
+    if unknown:
+        raise UsageError(
+            f"state file {str(path)!r}: unknown name {unknown[0]!r}; allowed: {', '.join(known)} "
+            f"(and {', '.join(IGNORED_STATE_COLUMNS)}, ignored)"
+        )
     missing = [n for n in REQUIRED_STATE_NAMES if n not in raw]
     if missing:
         raise UsageError(
             f"state file {str(path)!r} lacks {', '.join(missing)}; needs {', '.join(REQUIRED_STATE_NAMES)}"
         )
-    for name in (*REQUIRED_STATE_NAMES, "chi", "h"):
+    for name in known:
         if name not in raw:
             continue
         try:
             v = float(raw[name])
         except (TypeError, ValueError):
             raise UsageError(f"state file {str(path)!r}: {name}={raw[name]!r} is not a number") from None
+        except OverflowError:  # an integer beyond any float
+            v = math.inf
         if not math.isfinite(v):
-            raise UsageError(f"state file {str(path)!r}: {name}={v} is not finite")
+            raise UsageError(f"state file {str(path)!r}: {name}={raw[name]} is not finite")
         state[name] = v
     validate_state(state)
     if state["h"] <= 0:

@@ -7,7 +7,9 @@ arrays a run keeps), compared with a fraction of the machine's physical memory.
 
 from __future__ import annotations
 
+import math
 import os
+from pathlib import Path
 
 from harv_jax.errors import UsageError
 
@@ -64,6 +66,53 @@ def check_memory(need_bytes: float, what: str, hint: str) -> None:
         )
 
 
+#: First bytes of a zip archive (a ``.npz``): a local file header, or the end record of an empty archive.
+ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
+
+
+def check_npz_archive(path: Path, what: str) -> None:
+    """Read only the array headers of the ``.npz`` at ``path``; raise UsageError if the file cannot be read,
+    is empty or no zip archive, a member is not a ``.npy`` array, holds Python objects (loading it would need
+    pickle), or the arrays declare more bytes than :func:`check_memory` allows. ``what`` names the file in
+    the message (``"policy file 'p.npz'"``)."""
+    import zipfile
+
+    import numpy as np
+
+    try:
+        with path.open("rb") as f:
+            head = f.read(4)
+    except OSError as e:
+        raise UsageError(f"{what} cannot be read ({e.strerror or type(e).__name__})") from None
+    if not head:
+        raise UsageError(f"{what} is empty (0 bytes); expected a .npz archive")
+    if head not in ZIP_MAGIC:
+        raise UsageError(f"{what} is not a .npz archive (no zip header)")
+    readers = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
+    total = 0
+    try:
+        with zipfile.ZipFile(path) as z:
+            for info in z.infolist():
+                with z.open(info) as f:
+                    if f.read(6) != np.lib.format.MAGIC_PREFIX:
+                        raise UsageError(f"{what}: member {info.filename!r} is not a .npy array")
+                    version = tuple(f.read(2))
+                    if version not in readers:
+                        raise UsageError(f"{what}: {info.filename} has .npy format {version}; not supported")
+                    shape, _, dtype = readers[version](f)
+                if dtype.hasobject:
+                    raise UsageError(
+                        f"{what} holds Python objects ({info.filename}), which are never loaded; expected "
+                        "plain numeric arrays"
+                    )
+                total += math.prod(shape) * dtype.itemsize
+    except UsageError:
+        raise
+    except Exception as e:  # zipfile, zlib, numpy header and OS errors of a damaged archive
+        raise UsageError(f"{what} is truncated or damaged ({type(e).__name__})") from None
+    check_memory(total, f"{what} ({total:,} bytes of arrays)", "check the file")
+
+
 def check_seed(seed: int, flag: str = "--seed") -> int:
     """Return ``seed`` if it is an integer in :data:`SEED_RANGE`, else raise UsageError."""
     lo, hi = SEED_RANGE
@@ -80,8 +129,13 @@ def check_steps(n_steps: int, what: str, hint: str) -> None:
 
 def check_simulate(duration_s: float, dt_s: float) -> None:
     """Guard ``harv-jax simulate``: step count and host memory of the trajectory (rollout, CSV table)."""
-    n_steps = round(duration_s / dt_s)
     what = f"--duration {duration_s:g} s at --dt {dt_s:g} s"
+    steps = duration_s / dt_s
+    if not steps < INT32_MAX:  # also inf and nan, which round() cannot take
+        raise UsageError(
+            f"{what} is more than the {INT32_MAX:,} steps allowed; shorten --duration or raise --dt"
+        )
+    n_steps = round(steps)
     check_steps(n_steps, what, "shorten --duration or raise --dt")
     check_memory(n_steps * SIMULATE_BYTES_PER_STEP, f"{what} ({n_steps:,} steps)",
                  "shorten --duration or raise --dt")  # fmt: skip
@@ -141,6 +195,29 @@ def check_closed_loop_batch(
     )
 
 
+#: Widest hidden layer and most hidden layers of a policy or value network.
+MAX_LAYER_WIDTH = 65_536
+MAX_HIDDEN_LAYERS = 64
+#: Copies of every network weight a training run holds: parameters, gradients, Adam's two moments.
+TRAIN_COPIES_PER_WEIGHT = 4
+
+
+def check_network(hidden_sizes: tuple[int, ...], num_seeds: int) -> None:
+    """Guard the hidden layers of ``num_seeds`` actor-critic pairs: depth, width, and the memory of their
+    hidden weights in training (:data:`TRAIN_COPIES_PER_WEIGHT` copies; input and output layers are small)."""
+    if len(hidden_sizes) > MAX_HIDDEN_LAYERS:
+        raise UsageError(
+            f"hidden_sizes has {len(hidden_sizes)} layers; at most {MAX_HIDDEN_LAYERS} are allowed"
+        )
+    for i, h in enumerate(hidden_sizes):
+        if h > MAX_LAYER_WIDTH:
+            raise UsageError(f"hidden_sizes[{i}] = {h} is wider than the {MAX_LAYER_WIDTH:,} allowed")
+    weights = sum(a * b for a, b in zip(hidden_sizes, hidden_sizes[1:], strict=False)) + sum(hidden_sizes)
+    need = 2 * num_seeds * weights * TRAIN_COPIES_PER_WEIGHT * BYTES_PER_FLOAT
+    check_memory(need, f"hidden_sizes {list(hidden_sizes)} x --seeds {num_seeds}",
+                 "use narrower hidden layers or fewer --seeds")  # fmt: skip
+
+
 def check_train(total_steps: int, num_envs: int, unroll: int, num_seeds: int, gradient_steps: int) -> None:
     """Guard ``harv-jax train``: int32 sizes of the compiled update and the memory of one update.
 
@@ -161,7 +238,8 @@ def check_train(total_steps: int, num_envs: int, unroll: int, num_seeds: int, gr
     if transitions > INT32_MAX:
         raise UsageError(
             f"--num-envs {num_envs:,} x --unroll {unroll} x --seeds {num_seeds} = {transitions:,} "
-            f"transitions per update, more than the {INT32_MAX:,} an array may index; lower --num-envs"
+            f"transitions per update, more than the {INT32_MAX:,} an array may index; lower --num-envs, "
+            "--unroll or --seeds"
         )
     need = (
         num_seeds * num_envs * (unroll * TRAIN_FLOATS_PER_TRANSITION + TRAIN_FLOATS_PER_ENV) * BYTES_PER_FLOAT

@@ -32,6 +32,7 @@ import numpy as np
 from flax import traverse_util
 
 from harv_jax.errors import UsageError
+from harv_jax.guards import MAX_LAYER_WIDTH, check_npz_archive
 from harv_jax.ppo import normalize as obs_norm
 from harv_jax.ppo.networks import (
     PPONetworks,
@@ -139,32 +140,18 @@ def export_npz(path: str | Path, policy: Policy) -> Path:
     return path
 
 
-#: ``meta`` keys a policy ``.npz`` must hold, and the largest layer width / input size accepted.
+#: ``meta`` keys a policy ``.npz`` must hold (the largest layer width / input size: ``MAX_LAYER_WIDTH``).
 NPZ_META_KEYS = ("format", "observation_size", "action_size", "hidden_sizes", "normalize_observations")
-MAX_LAYER_WIDTH = 65_536
-_ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
 
 
 def _read_npz_arrays(path: Path) -> dict[str, np.ndarray]:
     """All arrays of a ``.npz`` (never unpickling); UsageError naming the file and what is wrong."""
     name = str(path)
-    size = path.stat().st_size
-    if size == 0:
-        raise UsageError(f"policy file {name!r} is empty (0 bytes); expected a harv_jax policy .npz")
-    with path.open("rb") as f:
-        head = f.read(4)
-    if head not in _ZIP_MAGIC:
-        raise UsageError(
-            f"policy file {name!r} is not a .npz archive (no zip header); expected a harv_jax policy .npz"
-        )
+    check_npz_archive(path, f"policy file {name!r}")  # headers only: no Python objects, sizes within memory
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}
     except Exception as e:  # zipfile, zlib, numpy and OS errors of a damaged archive
-        text = str(e)
-        if "pickle" in text:
-            raise UsageError(f"policy file {name!r} holds Python objects, which are never loaded; "
-                             "expected plain arrays as written by harv-jax train") from None  # fmt: skip
         raise UsageError(f"policy file {name!r} is truncated or damaged ({type(e).__name__})") from None
     return arrays
 
@@ -267,7 +254,7 @@ def _load_checkpoint(path: Path, seed: int) -> Policy:
     payload = checkpoint.read(path)
     cfg = from_dict(json.loads(payload["config"]), source=path.name)
     if not 0 <= seed < cfg.num_seeds:
-        raise UsageError(f"--seed {seed} is outside the checkpoint's {cfg.num_seeds} seeds")
+        raise UsageError(f"{path.name}@{seed}: the checkpoint holds seeds 0 to {cfg.num_seeds - 1} only")
     paths = json.loads(payload["paths"])
     meta_sizes = _sizes_from_paths(paths, payload)
     networks = make_ppo_networks(*meta_sizes, cfg.hidden_sizes, cfg.init_log_std)
@@ -324,6 +311,8 @@ def load(path: str | Path, seed: int = 0) -> Policy:
         p = found
     if not p.is_file():
         raise UsageError(f"policy {str(p)!r} does not exist")
+    if p.suffix != ".msgpack" and seed != 0:
+        raise UsageError(f"policy {str(p)!r}@{seed}: a .npz holds one learner; @SEED is for checkpoints")
     if p.suffix == ".msgpack":
         try:
             return _load_checkpoint(p, seed)
@@ -357,8 +346,10 @@ def resolve_policy(spec: str | Path | None) -> Policy:
         name = text.partition(":")[2] or DEFAULT_SHIPPED
         return load(shipped_path(name))
     path, sep, seed = text.rpartition("@")
-    if sep and seed.isdigit():
+    if sep and seed.isascii() and seed.isdigit():
         return load(path, int(seed))
+    if sep and Path(path).is_file() and not Path(text).exists():
+        raise UsageError(f"policy {text!r}: the learner after '@' must be a whole number >= 0, not {seed!r}")
     return load(text)
 
 

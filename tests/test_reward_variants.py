@@ -254,7 +254,8 @@ def test_cli_bad_reward_table_exit_2(monkeypatch, capsys, tmp_path):
     preset.write_text(text)
     code, _, err = cli_run(monkeypatch, capsys, "train", "--preset", preset, "--out", tmp_path / "run")
     assert code == 2
-    assert err.strip() == "harv-jax: error: spin.reset_prob = 1.5 is outside the allowed range [0, 1]"
+    expected = "preset bad.toml: spin.reset_prob = 1.5 is outside the allowed range [0, 1]"
+    assert err.strip() == f"harv-jax: error: {expected}"
     assert not (tmp_path / "run").exists()
 
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import typer
 
-from harv_jax.cli_options import controllers_help, policy_option, zeta_option
+from harv_jax.cli_options import controllers_help, policy_option, real_number, whole_number, zeta_option
 from harv_jax.errors import UsageError
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S, H0_FT
 
@@ -113,10 +113,12 @@ def register(app: typer.Typer) -> None:
             "state units (ft/s, rad, rad/s, ft), e.g. 'alpha0=-0.175,1.047:r0'. Default ranges: the "
             "paper's reset bounds.",
         ),
-        n: int = typer.Option(100, help="Points per grid axis (n x n runs per controller)."),
-        duration: float = typer.Option(60.0, help="Run length, s."),
+        n: int = typer.Option(
+            100, parser=whole_number, help="Points per grid axis (n x n runs per controller)."
+        ),
+        duration: float = typer.Option(60.0, parser=real_number, help="Run length, s."),
         target_alpha: float = typer.Option(
-            ALPHA_TARGET_RAD, help="Target angle of attack, rad (beta_d = mu_d = 0)."
+            ALPHA_TARGET_RAD, parser=real_number, help="Target angle of attack, rad (beta_d = mu_d = 0)."
         ),
         fixed: str = typer.Option(
             "",
@@ -124,9 +126,12 @@ def register(app: typer.Typer) -> None:
             f"beta0=p0=q0=r0=mu0=gamma0=chi0=0, h0={H0_FT:g} ft).",
         ),
         zeta: str = zeta_option(),
-        seed: int = typer.Option(0, help="Seed of the controllers' keys (the grid itself is deterministic)."),
+        seed: int = typer.Option(
+            0, parser=whole_number, help="Seed of the controllers' keys (the grid itself is deterministic)."
+        ),
         chunk: int | None = typer.Option(
             None,
+            parser=whole_number,
             help="Runs per compiled call (bounds memory). Default: 512 per CPU core, all runs on a GPU, "
             "within 1/8 of memory. Results depend on it at float rounding.",
         ),

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from harv_jax.cli_options import policy_option, zeta_option
+from harv_jax.cli_options import policy_option, real_number, whole_number, zeta_option
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 
@@ -25,14 +25,22 @@ def register(app: typer.Typer) -> None:
             "r, mu, gamma; optional chi, h).",
         ),
         target_alpha: float = typer.Option(
-            ALPHA_TARGET_RAD, help="Target angle of attack alpha_d, rad (beta_d = mu_d = 0)."
+            ALPHA_TARGET_RAD,
+            parser=real_number,
+            help="Target angle of attack alpha_d, rad (beta_d = mu_d = 0).",
         ),
-        duration: float = typer.Option(60.0, help="Closed-loop flight time after engagement, s."),
-        seed: int = typer.Option(0, help="Seed of the random scenario and of the controller key."),
+        duration: float = typer.Option(
+            60.0, parser=real_number, help="Closed-loop flight time after engagement, s."
+        ),
+        seed: int = typer.Option(
+            0, parser=whole_number, help="Seed of the random scenario and of the controller key."
+        ),
         out: Path = typer.Option(Path("runs/fly"), help="Output directory."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
         switching: str = typer.Option("sat", help="SMC switching: sat (boundary layer) or sign (paper)."),
-        spin_s: float = typer.Option(30.0, help="Spin scenario: seconds held in the spin before engagement."),
+        spin_s: float = typer.Option(
+            30.0, parser=real_number, help="Spin scenario: seconds held in the spin before engagement."
+        ),
     ) -> None:
         """Fly a controller closed loop: trajectory.csv, trajectory.png, sliding.png, metrics.json (and
         hybrid.png for the hybrid)."""

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from harv_jax.cli_options import controllers_help, policy_option, zeta_option
+from harv_jax.cli_options import controllers_help, policy_option, real_number, whole_number, zeta_option
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 
@@ -16,13 +16,18 @@ def register(app: typer.Typer) -> None:
         controller: str = typer.Option("smc", help=controllers_help()),
         policy: str = policy_option(),
         zeta: str = zeta_option(),
-        runs: int = typer.Option(1000, help="Number of Monte Carlo runs."),
-        target_alpha: float = typer.Option(ALPHA_TARGET_RAD, help="Target angle of attack, rad."),
-        duration: float = typer.Option(60.0, help="Run length, s."),
-        seed: int = typer.Option(0, help="Seed of initial states, aircraft and controller keys."),
+        runs: int = typer.Option(1000, parser=whole_number, help="Number of Monte Carlo runs."),
+        target_alpha: float = typer.Option(
+            ALPHA_TARGET_RAD, parser=real_number, help="Target angle of attack, rad."
+        ),
+        duration: float = typer.Option(60.0, parser=real_number, help="Run length, s."),
+        seed: int = typer.Option(
+            0, parser=whole_number, help="Seed of initial states, aircraft and controller keys."
+        ),
         randomize: bool = typer.Option(False, help="Randomize mass, inertia and aero per run."),
         chunk: int | None = typer.Option(
             None,
+            parser=whole_number,
             help="Runs per compiled call (bounds memory). Default: 512 per CPU core, all runs on a GPU, "
             "within 1/8 of memory. Results depend on it at float rounding.",
         ),

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from harv_jax.cli_options import validate_state
+from harv_jax.cli_options import real_number, validate_state
 from harv_jax.errors import UsageError
 from harv_jax.task.spec import DT_S, H0_FT
 
@@ -89,9 +89,9 @@ def register(app: typer.Typer) -> None:
             "(ft/s, rad, rad/s, ft). Defaults: near trim at 600 ft/s, 25,000 ft.",
         ),
         controls: str = typer.Option("", help="Fixed deflections, e.g. 'de=-0.3,da=0.1,dr=0.2' (rad)."),
-        duration: float = typer.Option(30.0, help="Duration, s (> 0)."),
-        dt: float = typer.Option(DT_S, help="RK4 step, s (0 < dt <= 0.05)."),
-        throttle: float = typer.Option(0.2, help="Fixed throttle in [0, 1]."),
+        duration: float = typer.Option(30.0, parser=real_number, help="Duration, s (> 0)."),
+        dt: float = typer.Option(DT_S, parser=real_number, help="RK4 step, s (0 < dt <= 0.05)."),
+        throttle: float = typer.Option(0.2, parser=real_number, help="Fixed throttle in [0, 1]."),
         out: Path = typer.Option(Path("runs/simulate"), help="Output directory."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
     ) -> None:

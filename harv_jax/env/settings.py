@@ -15,6 +15,9 @@ key or a value out of its range raises :class:`UsageError` naming the key and wh
   ``randomize_aircraft`` (draw the bank's aircraft with the mass/inertia/aero ranges).
 - ``[eval]``: evaluation during training (read by ``harv-jax train``): ``every`` (periods), ``upset_runs``,
   ``spin_runs``, ``duration_s``.
+
+:func:`check_env_settings` validates all of it with plain Python (no jax array is made), so a preset is
+checked before anything is built.
 """
 
 from __future__ import annotations
@@ -28,6 +31,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from harv_jax.env.config import (
+    DEFAULT_GUST_TAU_S,
+    DEFAULT_NOISE_STD_MAX,
     EnvConfig,
     EnvParams,
     RandomizationParams,
@@ -36,9 +41,24 @@ from harv_jax.env.config import (
     strip_weak_type,
 )
 from harv_jax.errors import UsageError
+from harv_jax.guards import check_seed
 
 #: Nested tables of the env settings and what they hold.
 TABLES = ("reward", "randomization", "spin", "eval")
+
+#: Allowed range of every ``[env]`` setting (None: a switch, true or false); a setting whose
+#: :class:`EnvConfig` default is an int must be a whole number. ``h_floor_ft`` may also be ``-inf`` (no
+#: ground) and must lie below ``h0_ft``.
+ENV_RANGES: dict[str, tuple[float, float] | None] = {
+    "dt_s": (1e-4, 0.05),
+    "episode_steps": (1, 1_000_000),
+    "max_delay_steps": (0, 100),
+    "domain_randomization": None,
+    "throttle": (0.0, 1.0),
+    "h0_ft": (1.0, 65_000.0),
+    "h_floor_ft": (-1e9, 65_000.0),
+    "discount": (1e-6, 1.0),
+}
 
 #: Allowed range and length (None: scalar) of every reward field.
 REWARD_RANGES: dict[str, tuple[float, float, int | None]] = {
@@ -111,15 +131,22 @@ class EvalSettings:
 
 
 def _number(where: str, v: Any) -> float:
-    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+    if isinstance(v, bool) or not isinstance(v, int | float):
         raise UsageError(f"{where} = {v!r} must be a finite number")
-    return float(v)
+    try:
+        x = float(v)
+    except OverflowError:  # an integer beyond any float
+        x = math.inf
+    if not math.isfinite(x):
+        raise UsageError(f"{where} = {v!r} must be a finite number")
+    return x
 
 
 def _check_range(where: str, v: Any, lo: float, hi: float) -> None:
     _number(where, v)
     if not lo <= v <= hi:
-        raise UsageError(f"{where} = {v!r} is outside the allowed range [{lo:g}, {hi:g}]")
+        bounds = ", ".join(str(b) if isinstance(b, int) else f"{b:g}" for b in (lo, hi))
+        raise UsageError(f"{where} = {v!r} is outside the allowed range [{bounds}]")
 
 
 def _dataclass_from_table(cls: type, table: dict[str, Any], name: str) -> Any:
@@ -146,6 +173,7 @@ def _dataclass_from_table(cls: type, table: dict[str, Any], name: str) -> Any:
 def spin_settings(table: dict[str, Any] | None) -> SpinSettings:
     """Validated ``[spin]`` table."""
     s = _dataclass_from_table(SpinSettings, table or {}, "spin")
+    check_seed(s.bank_seed, "spin.bank_seed")
     _check_range("spin.reset_prob", s.reset_prob, 0.0, 1.0)
     _check_range("spin.bank_size", s.bank_size, 1, 65_536)
     _check_range("spin.spin_s_min", s.spin_s_min, 1.0, 120.0)
@@ -164,9 +192,9 @@ def eval_settings(table: dict[str, Any] | None) -> EvalSettings:
     return s
 
 
-def reward_params(table: dict[str, Any] | None, base: RewardParams) -> RewardParams:
-    """``base`` with the ``[reward]`` table's values (validated)."""
-    changes = {}
+def check_reward_table(table: dict[str, Any] | None) -> None:
+    """Raise UsageError for an unknown key or a value outside :data:`REWARD_RANGES` in a ``[reward]``
+    table."""
     for k, v in (table or {}).items():
         if k not in REWARD_RANGES:
             raise UsageError(f"unknown [reward] setting {k!r}; allowed: {', '.join(REWARD_RANGES)}")
@@ -178,25 +206,36 @@ def reward_params(table: dict[str, Any] | None, base: RewardParams) -> RewardPar
                 raise UsageError(f"reward.{k} = {v!r} must be a list of {n} numbers")
             for i, x in enumerate(v):
                 _check_range(f"reward.{k}[{i}]", x, lo, hi)
+
+
+def reward_params(table: dict[str, Any] | None, base: RewardParams) -> RewardParams:
+    """``base`` with the ``[reward]`` table's values (validated)."""
+    check_reward_table(table)
+    changes = {}
+    for k, v in (table or {}).items():
         old = getattr(base, k)
         changes[k] = jnp.asarray(v, dtype=old.dtype).reshape(old.shape)
     return base.replace(**changes)
 
 
-def randomization_params(table: dict[str, Any] | None, base: RandomizationParams) -> RandomizationParams:
-    """``base`` with the ``[randomization]`` table's values (validated)."""
+#: Defaults of the gust correlation times, for the min <= max check of a table that sets one of them.
+_GUST_TAU_DEFAULTS = dict(zip(("gust_tau_min_s", "gust_tau_max_s"), DEFAULT_GUST_TAU_S, strict=True))
+
+
+def check_randomization_table(table: dict[str, Any] | None) -> None:
+    """Raise UsageError for an unknown key, a non-bool switch or a range outside
+    :data:`RANDOMIZATION_RANGES` of a ``[randomization]`` table."""
     fields = [f.name for f in dataclasses.fields(RandomizationParams)]
-    changes = {}
+    n_noise = len(DEFAULT_NOISE_STD_MAX)
     for k, v in (table or {}).items():
         if k not in fields:
             raise UsageError(f"unknown [randomization] setting {k!r}; allowed: {', '.join(fields)}")
-        old = getattr(base, k)
         if k.endswith("_on"):
             if not isinstance(v, bool):
                 raise UsageError(f"randomization.{k} = {v!r} must be true or false")
         elif k == "noise_std_max":
-            if not isinstance(v, list | tuple) or len(v) != old.shape[0]:
-                raise UsageError(f"randomization.{k} = {v!r} must be a list of {old.shape[0]} numbers")
+            if not isinstance(v, list | tuple) or len(v) != n_noise:
+                raise UsageError(f"randomization.{k} = {v!r} must be a list of {n_noise} numbers")
             for i, x in enumerate(v):
                 _check_range(f"randomization.{k}[{i}]", x, 0.0, 10.0)
         else:
@@ -204,6 +243,20 @@ def randomization_params(table: dict[str, Any] | None, base: RandomizationParams
             _check_range(f"randomization.{k}", v, lo, hi)
             if k == "delay_max_steps" and not float(v).is_integer():
                 raise UsageError(f"randomization.{k} = {v!r} must be an integer")
+    tau = {**_GUST_TAU_DEFAULTS, **{k: v for k, v in (table or {}).items() if k in _GUST_TAU_DEFAULTS}}
+    if tau["gust_tau_min_s"] > tau["gust_tau_max_s"]:
+        raise UsageError(
+            f"randomization.gust_tau_min_s = {tau['gust_tau_min_s']:g} must be <= gust_tau_max_s "
+            f"= {tau['gust_tau_max_s']:g}"
+        )
+
+
+def randomization_params(table: dict[str, Any] | None, base: RandomizationParams) -> RandomizationParams:
+    """``base`` with the ``[randomization]`` table's values (validated)."""
+    check_randomization_table(table)
+    changes = {}
+    for k, v in (table or {}).items():
+        old = getattr(base, k)
         changes[k] = jnp.asarray(v, dtype=old.dtype).reshape(old.shape)
     out = base.replace(**changes)
     if float(out.gust_tau_min_s) > float(out.gust_tau_max_s):
@@ -216,6 +269,8 @@ def randomization_params(table: dict[str, Any] | None, base: RandomizationParams
 
 def split_tables(env_table: dict[str, Any]) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
     """(EnvConfig fields, {table name: table}) of an env settings dict."""
+    if not isinstance(env_table, dict):
+        raise UsageError(f"[env] must be a table of settings, got {env_table!r}")
     flat = {k: v for k, v in env_table.items() if k not in TABLES}
     nested = {}
     for k in TABLES:
@@ -227,17 +282,47 @@ def split_tables(env_table: dict[str, Any]) -> tuple[dict[str, Any], dict[str, d
 
 
 def env_config(flat: dict[str, Any]) -> EnvConfig:
-    """Validated EnvConfig from the ``[env]`` table's fields."""
-    allowed = {f.name for f in dataclasses.fields(EnvConfig)}
-    unknown = sorted(set(flat) - allowed)
+    """Validated EnvConfig from the ``[env]`` table's fields (types and :data:`ENV_RANGES`)."""
+    fields = {f.name: f.default for f in dataclasses.fields(EnvConfig)}
+    unknown = sorted(set(flat) - set(fields))
     if unknown:
         raise UsageError(
-            f"unknown env setting {unknown[0]!r}; allowed: {', '.join(sorted(allowed | set(TABLES)))}"
+            f"unknown env setting {unknown[0]!r}; allowed: {', '.join(sorted(set(fields) | set(TABLES)))}"
         )
+    for k, v in flat.items():
+        if k not in ENV_RANGES:
+            continue  # a field without a range here: EnvConfig checks it
+        rng, where = ENV_RANGES[k], f"env.{k}"
+        if rng is None:
+            if not isinstance(v, bool):
+                raise UsageError(f"{where} = {v!r} must be true or false")
+            continue
+        if k == "h_floor_ft" and isinstance(v, float) and v == -math.inf:
+            continue  # no ground
+        if isinstance(fields[k], int) and (isinstance(v, bool) or not isinstance(v, int)):
+            raise UsageError(f"{where} = {v!r} must be a whole number in [{rng[0]}, {rng[1]}]")
+        _check_range(where, v, *rng)
     try:
-        return EnvConfig(**flat)
+        cfg = EnvConfig(**flat)
     except (TypeError, ValueError) as e:
         raise UsageError(f"bad env setting: {e}") from None
+    if not cfg.h_floor_ft < cfg.h0_ft:
+        raise UsageError(f"env.h_floor_ft = {cfg.h_floor_ft!r} must be below env.h0_ft = {cfg.h0_ft!r}")
+    return cfg
+
+
+def check_env_settings(env_table: dict[str, Any]) -> None:
+    """Validate a whole env settings dict (``[env]`` fields and nested tables) without making jax arrays.
+
+    Raises:
+        UsageError: one line naming the first bad key or value and what is allowed.
+    """
+    flat, nested = split_tables(env_table)
+    env_config(flat)
+    check_reward_table(nested["reward"])
+    check_randomization_table(nested["randomization"])
+    spin_settings(nested["spin"])
+    eval_settings(nested["eval"])
 
 
 def env_params(config: EnvConfig, nested: dict[str, dict[str, Any]], spin_bank: Any = None) -> EnvParams:

@@ -175,7 +175,11 @@ def read(path: str | Path) -> dict[str, Any]:
     if not p.is_file():
         raise UsageError(f"checkpoint {str(p)!r} does not exist")
     try:
-        payload = serialization.msgpack_restore(p.read_bytes())
+        data = p.read_bytes()
+    except OSError as e:
+        raise UsageError(f"checkpoint {str(p)!r} cannot be read ({e.strerror or type(e).__name__})") from None
+    try:
+        payload = serialization.msgpack_restore(data)
     except Exception as e:  # msgpack raises several types on corrupt input
         raise UsageError(
             f"checkpoint {str(p)!r} is unreadable (truncated or damaged: {type(e).__name__})"

@@ -23,7 +23,7 @@ PRESET_DIR: Traversable = importlib.resources.files("harv_jax.training") / "pres
 #: Tables of a preset besides ``[ppo]``; all but ``env`` are stored nested inside the env settings.
 NESTED_TABLES = ("reward", "randomization", "spin", "eval")
 #: Name of the preset used when none is given.
-DEFAULT_PRESET = "smoke"
+DEFAULT_PRESET = "teacher"
 
 
 def _preset_files() -> dict[str, Traversable]:
@@ -44,24 +44,52 @@ def preset_path(name: str) -> Traversable | None:
     return _preset_files().get(name)
 
 
-def load_preset(name: str) -> tuple[PPOConfig, dict[str, Any]]:
+def _preset_file(name: str) -> Path | Traversable:
+    """The file of a preset name or ``.toml`` path; UsageError naming it and what is allowed if none."""
+    allowed = ", ".join(available_presets()) or "(none found)"
+    if not name.endswith(".toml"):
+        path = preset_path(name)
+        if path is None:
+            raise UsageError(f"unknown preset {name!r}; available: {allowed} (or a path to a .toml file)")
+        return path
+    path = Path(name)
+    if path.is_dir():
+        raise UsageError(f"preset {name!r} is a directory; give a .toml file or a shipped preset: {allowed}")
+    if not path.is_file():
+        what = "is not a regular file" if path.exists() else "does not exist"
+        raise UsageError(f"preset file {name!r} {what}; give a .toml file or a shipped preset: {allowed}")
+    return path
+
+
+def load_preset(name: str, check_env: bool = True) -> tuple[PPOConfig, dict[str, Any]]:
     """Load a preset by name (``smoke``, ``paper-partial`` ...) or by path to a ``.toml`` file.
+
+    Args:
+        name: a shipped preset's name or a path ending in ``.toml``.
+        check_env: also validate the env settings (``harv_jax.env.settings.check_env_settings``; imports
+            jax). False reads the ``[ppo]`` table's values only (the command-line help does).
 
     Returns:
         (validated PPOConfig, env settings: the ``[env]`` table with the nested tables inside).
 
     Raises:
-        UsageError: unknown name, missing file, bad TOML, unknown table or bad ``[ppo]`` value.
+        UsageError: unknown name, missing or unreadable file, bad TOML, unknown table, or a bad value in any
+            table, named with the preset.
     """
-    path = Path(name) if name.endswith(".toml") else preset_path(name)
-    if path is None or not path.is_file():
-        allowed = ", ".join(available_presets()) or "(none found)"
-        raise UsageError(f"unknown preset {name!r}; available: {allowed}")
+    path = _preset_file(name)
     cfg, tables = ppo_config.load_file(path, ("env", *NESTED_TABLES))
     env = dict(tables.get("env", {}))
     for table in NESTED_TABLES:  # stored inside the env settings (checkpoints keep them for --resume)
         if table in tables:
             env[table] = dict(tables[table])
+    if check_env:
+        from harv_jax.env.settings import check_env_settings
+        from harv_jax.training.in_loop import split_loop
+
+        try:
+            check_env_settings(split_loop(env)[1])
+        except UsageError as e:
+            raise UsageError(f"preset {path.name}: {e}") from None
     return cfg, env
 
 

@@ -29,6 +29,20 @@ class ResumePlan(NamedTuple):
     messages: tuple[str, ...]
 
 
+def _checked_env(env_table: Any, source: str) -> dict[str, Any]:
+    """A run's stored env settings, validated (``harv_jax.env.settings``); UsageError naming ``source``."""
+    from harv_jax.env.settings import check_env_settings
+    from harv_jax.training.in_loop import split_loop
+
+    if not isinstance(env_table, dict):
+        raise UsageError(f"{source}: the stored env settings {env_table!r} are not a table")
+    try:
+        check_env_settings(split_loop(env_table)[1])
+    except UsageError as e:
+        raise UsageError(f"{source}: {e}") from None
+    return dict(env_table)
+
+
 def resume_plan(run_dir: Path) -> ResumePlan:
     """Decide how to continue the run in ``run_dir``: its newest intact checkpoint, or, if it was stopped
     before writing one, a restart from period 0 with its ``config.json``. UsageError if neither exists."""
@@ -43,7 +57,7 @@ def resume_plan(run_dir: Path) -> ResumePlan:
         period, steps = int(choice.payload["period"]), int(choice.payload["env_steps"])
         messages.append(f"resuming from period {period} (env steps {steps:,}) of {choice.path}")
         cfg = ppo_config.from_dict(json.loads(choice.payload["config"]), source=choice.path.name)
-        env_table = json.loads(choice.payload["env_config"])
+        env_table = _checked_env(json.loads(choice.payload["env_config"]), choice.path.name)
         return ResumePlan(cfg, env_table, True, period, steps, None, tuple(messages))
     record_path = run_dir / "config.json"
     if not record_path.is_file():
@@ -54,9 +68,13 @@ def resume_plan(run_dir: Path) -> ResumePlan:
     try:
         record = json.loads(record_path.read_text())
         cfg = ppo_config.from_dict(record["ppo"], source=str(record_path))
-        env_table = dict(record.get("env", {}))
+        env_table = _checked_env(record.get("env", {}), str(record_path))
         init_policy = record.get("init_policy")
-    except (ValueError, KeyError, TypeError, AttributeError) as e:
+        if init_policy is not None and not isinstance(init_policy, str):
+            raise TypeError("init_policy")
+    except UsageError:
+        raise
+    except (ValueError, KeyError, TypeError, AttributeError, OSError) as e:
         raise UsageError(
             f"no checkpoint found in {str(ckpt_dir)!r} and {str(record_path)!r} is unreadable "
             f"({type(e).__name__}); start the run again with --out {str(run_dir)!r} --force"

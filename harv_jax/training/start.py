@@ -16,13 +16,14 @@ import jax
 from harv_jax.env import Env, EnvParams
 from harv_jax.env.episode_metrics import harv_episode_metrics
 from harv_jax.errors import UsageError
-from harv_jax.policy import resolve_policy
+from harv_jax.policy import Policy, resolve_policy
 from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo import normalize as obs_norm
 from harv_jax.ppo.config import PPOConfig
 from harv_jax.ppo.networks import PPOParams
 from harv_jax.ppo.runner import check_init_policy
 from harv_jax.ppo.train import Trainer, make_train
+from harv_jax.task.spaces import ACTION_SIZE, OBSERVATION_SIZE
 from harv_jax.training.environment import make_harv_env
 from harv_jax.training.outputs import save_spin_bank
 
@@ -44,11 +45,12 @@ class TrainingSetup(NamedTuple):
 
 
 def load_init_policy(
-    spec: str, trainer: Trainer, cfg: PPOConfig, env_params: EnvParams
+    spec: str, trainer: Trainer, cfg: PPOConfig, env_params: EnvParams, pol: Policy | None = None
 ) -> tuple[PPOParams, obs_norm.RunningStats]:
-    """(params, normalizer) of the policy ``spec`` (``shipped:NAME``, a path[@seed]), checked against the
-    run's abstract state (nothing is allocated); UsageError naming ``--init-policy`` if it does not fit."""
-    pol = resolve_policy(spec)
+    """(params, normalizer) of the policy ``spec`` (``shipped:NAME``, a path[@seed]; ``pol``: already loaded
+    from it), checked against the run's abstract state (nothing is allocated); UsageError naming
+    ``--init-policy`` if it does not fit."""
+    pol = resolve_policy(spec) if pol is None else pol
     init = (pol.params, pol.normalizer)
     keys = jax.random.split(jax.random.key(0), cfg.num_seeds)
     try:
@@ -56,6 +58,18 @@ def load_init_policy(
     except ValueError as e:
         raise UsageError(f"--init-policy {spec!r}: {e}") from None
     return init
+
+
+def check_init_sizes(spec: str, pol: Policy, cfg: PPOConfig) -> None:
+    """UsageError naming ``--init-policy`` unless the policy's observation, action and hidden sizes are the
+    run's (checked before the env is built; :func:`load_init_policy` then checks every array)."""
+    got = (pol.networks.observation_size, pol.networks.action_size, tuple(pol.networks.actor.hidden_sizes))
+    want = (OBSERVATION_SIZE, ACTION_SIZE, cfg.hidden_sizes)
+    if got != want:
+        raise UsageError(
+            f"--init-policy {spec!r} has {got[0]} observations, {got[1]} actions and hidden layers "
+            f"{list(got[2])}; this run needs {want[0]}, {want[1]} and {list(want[2])} (hidden_sizes)"
+        )
 
 
 def build_training(
@@ -66,9 +80,12 @@ def build_training(
     Raises:
         UsageError: a bad env setting or an initial policy that does not fit the run's networks.
     """
+    pol = None if init_policy is None else resolve_policy(init_policy)  # a bad file fails before the env
+    if pol is not None:
+        check_init_sizes(init_policy, pol, cfg)
     env, env_params = make_harv_env(env_table)
     trainer = make_train(env, cfg, env_params, episode_metrics_fn=harv_episode_metrics)
-    init = None if init_policy is None else load_init_policy(init_policy, trainer, cfg, env_params)
+    init = None if init_policy is None else load_init_policy(init_policy, trainer, cfg, env_params, pol)
     return TrainingSetup(env, env_params, trainer, init)
 
 
