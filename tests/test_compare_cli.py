@@ -41,10 +41,19 @@ def test_compare_writes_tables_and_figures(monkeypatch, capsys, tmp_path):
     ]  # fmt: skip
     assert list(rows[0]) == list(COLUMNS)
     assert rows[0]["zeta_active_fraction"] == "" and 0 <= float(rows[1]["zeta_active_fraction"]) <= 1
-    md = (out / "compare_metrics.md").read_text().splitlines()
-    assert len([ln for ln in md if ln.startswith("| ")]) == 1 + len(rows)
+    md = (out / "compare_metrics.md").read_text().split("\n\n")
+    table = next(block for block in md if block.startswith("| scenario |")).splitlines()
+    assert len([ln for ln in table if ln.startswith("| ")]) == 1 + len(rows)
     doc = json.loads((out / "compare.json").read_text())
     assert doc["policy"] == "shipped:partial" and len(doc["rows"]) == 4
+    # against smc: each row's time over smc's on its scenario, and hybrid over both scenarios
+    assert [float(r["recovery_time_vs_smc"]) for r in rows[::2]] == [1.0, 1.0]
+    for r in rows:
+        assert float(r["recovery_time_nr_at_run_s"]) == pytest.approx(
+            float(r["recovery_time_s"]) if r["recovery_time_s"] else 0.5
+        )
+    assert list(doc["vs_smc"]) == ["hybrid"] and doc["vs_smc"]["hybrid"]["runs"] == 2
+    assert any(block.startswith("| controller | faster_fraction") for block in md)
 
 
 @pytest.mark.parametrize(

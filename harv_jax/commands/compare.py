@@ -11,7 +11,7 @@ from pathlib import Path
 
 import typer
 
-from harv_jax.cli_options import controllers_help, policy_option, zeta_option
+from harv_jax.cli_options import controllers_help, policy_option, real_number, whole_number, zeta_option
 from harv_jax.errors import UsageError
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
@@ -22,13 +22,19 @@ def register(app: typer.Typer) -> None:
         controller: str = typer.Option("rl,smc,hybrid", help=controllers_help()),
         policy: str = policy_option(),
         zeta: str = zeta_option(),
-        target_alpha: float = typer.Option(ALPHA_TARGET_RAD, help="Target angle of attack, rad."),
-        duration: float = typer.Option(60.0, help="Closed-loop time after engagement, s."),
-        spin_s: float = typer.Option(30.0, help="Seconds held in the spin before engagement."),
+        target_alpha: float = typer.Option(
+            ALPHA_TARGET_RAD, parser=real_number, help="Target angle of attack, rad."
+        ),
+        duration: float = typer.Option(
+            60.0, parser=real_number, help="Closed-loop time after engagement, s."
+        ),
+        spin_s: float = typer.Option(
+            30.0, parser=real_number, help="Seconds held in the spin before engagement."
+        ),
         state: Path = typer.Option(
             None, help="Fixed-state scenario file (.json/.csv; default: a built-in upset)."
         ),
-        seed: int = typer.Option(0, help="Seed of the controller keys."),
+        seed: int = typer.Option(0, parser=whole_number, help="Seed of the controller keys."),
         out: Path = typer.Option(Path("runs/compare"), help="Output directory."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
     ) -> None:
@@ -47,7 +53,8 @@ def register(app: typer.Typer) -> None:
         fixed_state = None
         if state is not None:
             if not state.is_file():
-                raise UsageError(f"--state {str(state)!r} does not exist")
+                what = "does not exist" if not state.exists() else "is not a file"
+                raise UsageError(f"--state {str(state)!r} {what}; give a .json or .csv state file")
             fixed_state = load_state_file(state)
         # the heavy imports (jax) only after the arguments are checked: bad input fails fast
         from harv_jax.evaluation.comparison import FIXED_STATE, compare, write_comparison

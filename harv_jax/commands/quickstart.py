@@ -1,8 +1,8 @@
 """`harv-jax quickstart`: the main job on shipped defaults.
 
-1. the spin comparison: RL-only vs SMC-only vs hybrid after a 30 s developed spin, and from a fixed upset
-   (as ``harv-jax compare``), with the shipped policy;
-2. a Monte Carlo of SMC, RL and hybrid from the paper's reset bounds (as ``harv-jax mc``);
+1. the spin comparison: SMC-only, the braking SMC (``smc-brake``), RL-only and hybrid after a 30 s developed
+   spin, and from a fixed upset (as ``harv-jax compare``), with the shipped policy;
+2. a Monte Carlo of the same controllers from the paper's reset bounds (as ``harv-jax mc``);
 3. the report of both (as ``harv-jax report``): report.md and report.html.
 """
 
@@ -13,10 +13,10 @@ from pathlib import Path
 
 import typer
 
-from harv_jax.cli_options import policy_option, zeta_option
+from harv_jax.cli_options import policy_option, whole_number, zeta_option
 
 #: The controllers of the quickstart (names in harv_jax.control.registry).
-QUICKSTART_CONTROLLERS = ("smc", "rl", "hybrid")
+QUICKSTART_CONTROLLERS = ("smc", "smc-brake", "rl", "hybrid")
 DURATION_S = 60.0
 SPIN_S = 30.0
 CHUNK: int | None = None  # runs per compiled call: guards.auto_chunk
@@ -26,13 +26,14 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def quickstart(
         out: Path = typer.Option(Path("runs/quickstart"), help="Output directory."),
-        runs: int = typer.Option(1000, help="Monte Carlo runs."),
-        seed: int = typer.Option(0, help="Seed of the Monte Carlo."),
+        runs: int = typer.Option(1000, parser=whole_number, help="Monte Carlo runs."),
+        seed: int = typer.Option(0, parser=whole_number, help="Seed of the Monte Carlo."),
         policy: str = policy_option(),
         zeta: str = zeta_option(),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
     ) -> None:
-        """Spin comparison and a Monte Carlo of SMC, RL and hybrid with the shipped policy, plus a report."""
+        """Spin comparison and a Monte Carlo of SMC, braking SMC, RL and hybrid with the shipped policy, plus
+        a report."""
         from harv_jax.cli_options import check_mc_options, command_line, warn_loop_mismatch
         from harv_jax.control.registry import ControllerOptions, build_controller
         from harv_jax.guards import check_closed_loop_batch, check_seed
@@ -54,7 +55,7 @@ def register(app: typer.Typer) -> None:
         warn_loop_mismatch(names, policy, zeta)
         out_dir = prepare_out_dir(out, force)
         t0 = time.perf_counter()
-        typer.echo("[quickstart] 1/3 spin comparison: 30 s developed spin, then RL, SMC and hybrid recover")
+        typer.echo(f"[quickstart] 1/3 spin comparison: 30 s developed spin, then {', '.join(names)} recover")
         prepare_out_dir(out_dir / "compare")  # with the run marker: --force may replace it later
         comp = compare(
             names, policy, zeta, ALPHA_TARGET_RAD, DURATION_S, SPIN_S, FIXED_STATE, seed, typer.echo

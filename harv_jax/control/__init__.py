@@ -1,7 +1,8 @@
 """Controllers: owns the shared interface (``base.Controller(init, apply)``), the Lie derivatives of the
-controller model (``lie``), sliding-mode control (``smc``), the safety filter, zeta schedules, gate and
-supervisor, the hybrid (``hybrid``) and the RL-only controller (``rl``). Observation/action mapping and
-reset bounds come from ``harv_jax.task``; ``control`` never imports ``env`` or ``evaluation``."""
+controller model (``lie``), sliding-mode control (``smc``) and the SMC with an energy-braking alpha
+reference (``smc_brake``), the safety filter, zeta schedules, gate and supervisor, the hybrid (``hybrid``) and
+the RL-only controller (``rl``). Observation/action mapping and reset bounds come from ``harv_jax.task``;
+``control`` never imports ``env`` or ``evaluation``."""
 
 import importlib
 from typing import Any
@@ -21,6 +22,10 @@ _EXPORTS = {
     "default_gains": "harv_jax.control.smc",
     "guarded_solve": "harv_jax.control.smc",
     "make_smc": "harv_jax.control.smc",
+    "BrakeSchedule": "harv_jax.control.smc_brake",
+    "SMCBrakeState": "harv_jax.control.smc_brake",
+    "brake_schedule": "harv_jax.control.smc_brake",
+    "make_smc_brake": "harv_jax.control.smc_brake",
 }
 __all__ = sorted(_EXPORTS)
 

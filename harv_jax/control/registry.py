@@ -69,6 +69,13 @@ def _build_smc(opts: ControllerOptions) -> Controller:
     return make_smc(SMCConfig(switching=opts.switching))
 
 
+def _build_smc_brake(opts: ControllerOptions) -> Controller:
+    from harv_jax.control.smc import SMCConfig
+    from harv_jax.control.smc_brake import make_smc_brake
+
+    return make_smc_brake(SMCConfig(switching=opts.switching))
+
+
 def _policy_act(policy: str | None) -> Callable:
     """The deterministic action of the policy at ``policy``; UsageError if its sizes do not fit."""
     from harv_jax.policy import resolve_policy
@@ -110,6 +117,11 @@ CONTROLLERS: dict[str, ControllerEntry] = {
         ("policy", "zeta"),
         "policy + SMC feedback, scheduled by zeta (harv_jax.control.hybrid)",
         lambda opts: f"hybrid:{opts.zeta}",
+    ),
+    "smc-brake": ControllerEntry(
+        _build_smc_brake,
+        ("switching",),
+        "the SMC flying alpha_d = 1.0 rad while V > 500 ft/s: brakes by drag (harv_jax.control.smc_brake)",
     ),
 }
 

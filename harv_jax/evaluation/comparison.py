@@ -2,8 +2,9 @@
 
 For each scenario every controller flies from the same state (:func:`harv_jax.evaluation.flight.fly`);
 :func:`compare` returns a :class:`Comparison` with one metrics row per scenario and controller
-(``summary.COMPARE_COLUMNS``); :func:`write_comparison` writes the overlaid time histories in the paper's
-four-figure layout, the metrics table (Markdown + CSV) and ``compare.json``.
+(``summary.COMPARE_COLUMNS``) and, when ``smc`` is among the controllers, every other controller against it
+on the same scenarios (``paired.paired_vs_smc``); :func:`write_comparison` writes the overlaid time
+histories in the paper's four-figure layout, the metrics table (Markdown + CSV) and ``compare.json``.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from harv_jax.evaluation.flight import FlightResult, fly
+from harv_jax.evaluation.paired import REFERENCE_CONTROLLER, paired_vs_smc, times_nr_at_run_s
 from harv_jax.evaluation.summary import COMPARE_COLUMNS, controllers_setting
 from harv_jax.numfmt import fmt_num, write_json
 from harv_jax.task.spec import DT_S, H0_FT
@@ -41,9 +43,12 @@ def omega_settling_time_s(
 
 
 def row_of(scenario: str, controller: str, res: FlightResult) -> dict[str, Any]:
-    """The metrics-table row of one flight (times from engagement)."""
+    """The metrics-table row of one flight (times from engagement; ``recovery_time_vs_smc`` is None until
+    :func:`add_vs_smc` fills it in)."""
     m = res.metrics
     n_pre = int(round(res.t_engage_s / (res.t_s[1] - res.t_s[0]))) if len(res.t_s) > 1 else 0
+    t_rec = np.nan if m["t_recover_s"] is None else m["t_recover_s"]
+    t_nr = times_nr_at_run_s([t_rec], [m["recovered"]], (len(res.t_s) - n_pre) * DT_S)  # run length
     t = res.t_s[n_pre:] - res.t_engage_s
     hy = res.hybrid
     zeta_frac = fallbacks = None
@@ -68,7 +73,27 @@ def row_of(scenario: str, controller: str, res: FlightResult) -> dict[str, Any]:
         "rate_saturation_fraction": float(np.mean(m["sat_rate_fraction"])),
         "zeta_active_fraction": zeta_frac,
         "supervisor_fallbacks": fallbacks,
+        "recovery_time_nr_at_run_s": float(t_nr[0]),
+        "recovery_time_vs_smc": None,
     }
+
+
+def add_vs_smc(rows: list[dict[str, Any]], run_length_s: float) -> dict[str, dict[str, Any]]:
+    """Fill in ``recovery_time_vs_smc`` (this row's ``recovery_time_nr_at_run_s`` over smc's on the same
+    scenario) and return every other controller against smc over the scenarios
+    (``paired.paired_vs_smc``); nothing when smc is not among the rows."""
+    by = {(r["scenario"], r["controller"]): r["recovery_time_nr_at_run_s"] for r in rows}
+    scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
+    if not any(c == REFERENCE_CONTROLLER for _, c in by):
+        return {}
+    for r in rows:
+        ref = by[(r["scenario"], REFERENCE_CONTROLLER)]
+        r["recovery_time_vs_smc"] = r["recovery_time_nr_at_run_s"] / ref if ref > 0 else None
+    times = {
+        c: (np.array([by[(sc, c)] for sc in scenarios]), np.ones(len(scenarios), bool))
+        for c in dict.fromkeys(r["controller"] for r in rows)
+    }
+    return paired_vs_smc(times, run_length_s)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -78,6 +103,8 @@ class Comparison:
     Attributes:
         flights: scenario -> controller -> FlightResult.
         rows: one metrics row (COMPARE_COLUMNS) per scenario and controller.
+        vs_smc: controller -> ``paired.paired_vs_reference`` against smc over the scenarios (not-recovered
+            flights at the run length); empty when smc was not flown.
         certificates: ``"<scenario>/<controller>"`` -> the flight's certificate (controllers that have one).
         h0_ft: scenario -> initial altitude, ft.
         settings: the run's settings (the top of compare.json).
@@ -88,6 +115,7 @@ class Comparison:
     certificates: dict[str, dict]
     h0_ft: dict[str, float]
     settings: dict[str, Any]
+    vs_smc: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)
 
 
 def compare(
@@ -127,7 +155,8 @@ def compare(
         "target_alpha_rad": target_alpha_rad, "duration_s": duration_s, "spin_s": spin_s, "seed": seed,
         "dt_s": DT_S, "fixed_state": fixed_state,
     }  # fmt: skip
-    return Comparison(flights, rows, certificates, h0_ft, settings)
+    vs_smc = add_vs_smc(rows, duration_s)
+    return Comparison(flights, rows, certificates, h0_ft, settings, vs_smc)
 
 
 def _fmt(v: Any) -> str:
@@ -138,9 +167,11 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
-def write_tables(out_dir: Path, rows: list[dict], setting: str = "") -> None:
+def write_tables(
+    out_dir: Path, rows: list[dict], setting: str = "", vs_smc: dict[str, dict] | None = None
+) -> None:
     """compare_metrics.csv and compare_metrics.md (``setting``: a sentence naming the policy, references
-    and h0, printed above the table)."""
+    and h0, printed above the table; ``vs_smc``: :attr:`Comparison.vs_smc`, a second table in the .md)."""
     with (out_dir / "compare_metrics.csv").open("w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=COMPARE_COLUMNS)
         w.writeheader()
@@ -153,8 +184,20 @@ def write_tables(out_dir: Path, rows: list[dict], setting: str = "") -> None:
     notes = (
         "\nTimes are from controller engagement. constraint_violations counts leaving the flight envelope "
         "and hitting the ground (0-2); omega settling: ||(p, q, r)|| < 0.17 rad/s to the end; TV and chatter "
-        "are summed over the three surfaces; supervisor_fallbacks counts entries into SMC-only mode.\n"
+        "are summed over the three surfaces; supervisor_fallbacks counts entries into SMC-only mode; "
+        "recovery_time_nr_at_run_s is the recovery time with a flight that does not recover counted at the "
+        "run length, recovery_time_vs_smc that time over smc's on the same scenario.\n"
     )
+    if vs_smc:
+        cols = ("faster_fraction", "slower_fraction", "mean_ratio")
+        first = next(iter(vs_smc.values()))
+        notes += (
+            f"\nAgainst smc over the {first['runs']} scenarios (recovery times with a flight that does "
+            f"not recover at the run length, {first['run_length_s']:g} s): the share of scenarios recovered "
+            f"faster / slower than smc by more than {first['margin_s']:g} s and the mean time over smc's.\n\n"
+            "| controller | " + " | ".join(cols) + " |\n|" + "---|" * (len(cols) + 1) + "\n"
+            + "".join(f"| {c} | " + " | ".join(_fmt(v[k]) for k in cols) + " |\n" for c, v in vs_smc.items())
+        )  # fmt: skip
     (out_dir / "compare_metrics.md").write_text("\n".join(lines) + "\n" + notes)
 
 
@@ -196,6 +239,12 @@ def write_comparison(out_dir: Path, comp: Comparison, command: str) -> None:
         + (f" (the spin starts at h0 and is held {spin_s:g} s before engagement)" if "spin" in h0_ft else "")
         + "."
     )
-    write_tables(out_dir, comp.rows, setting)
-    doc = {"command": command, **s, "rows": comp.rows, "certificates": comp.certificates}
+    write_tables(out_dir, comp.rows, setting, comp.vs_smc)
+    doc = {
+        "command": command,
+        **s,
+        "rows": comp.rows,
+        "vs_smc": comp.vs_smc,
+        "certificates": comp.certificates,
+    }
     write_json(out_dir / "compare.json", doc)

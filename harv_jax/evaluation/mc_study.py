@@ -17,6 +17,7 @@ import numpy as np
 
 from harv_jax.control.registry import DEFAULT_ZETA
 from harv_jax.evaluation.monte_carlo import MCRunOutput
+from harv_jax.numfmt import fmt_num
 from harv_jax.task.spec import DT_S, H0_FT
 
 
@@ -60,6 +61,7 @@ def monte_carlo(
     from harv_jax.aircraft import harv
     from harv_jax.control.registry import ControllerOptions, build_controller
     from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+    from harv_jax.evaluation.paired import paired_vs_smc
     from harv_jax.evaluation.summary import mc_summary, summarize_controller
 
     say = progress or (lambda _msg: None)
@@ -78,14 +80,31 @@ def monte_carlo(
         say(f"[mc] {name}: {runs} runs x {n_steps} steps ...")
         out, wall = run_mc(ctrl, inputs, reference, n_steps, DT_S, record_every, chunk)
         outs[name] = out
-        s = summary["controllers"][name] = summarize_controller(out, wall, n_steps)
+        s = summary["controllers"][name] = summarize_controller(out, wall, n_steps, n_steps * DT_S)
         say(
-            f"[mc] {name}: recovery {s['recovery_rate']:.3f}, outcomes {s['outcomes']}, "
+            f"[mc] {name}: recovery {s['recovery_rate']:.3f}, outcomes {s['outcomes']}, recovery time "
+            f"median {fmt_num(s['recovery_time_s']['p50'], unit='s')}, mean (not recovered at "
+            f"{n_steps * DT_S:g} s) {fmt_num(s['t_recover_mean_nr_at_run_s'], unit='s')}, "
             f"compile {wall['compile']:.1f} s, run {wall['run']:.1f} s"
         )
+    times = {name: (out.metrics.t_recover_s, out.metrics.recovered) for name, out in outs.items()}
+    for name, vs in paired_vs_smc(times, n_steps * DT_S).items():
+        summary["controllers"][name]["vs_smc"] = vs
+        say(f"[mc] {name} vs smc: {paired_line(vs)}")
     n_rec = next(iter(outs.values())).history.shape[1]
     t_rec = np.arange(n_rec) * record_every * DT_S
     return MonteCarloStudy(summary, outs, np.asarray(inputs.x0_wind), t_rec, np.asarray(reference))
+
+
+def paired_line(vs: dict[str, Any]) -> str:
+    """One line of a ``vs_smc`` block: shares of runs faster / slower by the margin, ratio of means."""
+    ratio = vs["mean_ratio"]
+    return (
+        f"{100 * vs['faster_fraction']:.1f}% of runs faster by > {vs['margin_s']:g} s, "
+        f"{100 * vs['slower_fraction']:.1f}% slower, mean recovery time "
+        + ("-" if ratio is None else f"{ratio:.3f}x")
+        + f" the smc's (paired, not recovered at {vs['run_length_s']:g} s)"
+    )
 
 
 def write_runs_csv(path: Path, x0: np.ndarray, outs: dict[str, MCRunOutput]) -> None:

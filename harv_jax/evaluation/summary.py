@@ -1,7 +1,8 @@
 """The layout of every summary the commands write, owned here: the writers and ``harv_jax.report`` read it.
 
 - ``summary.json`` of ``harv-jax mc``: :func:`mc_summary` with one :func:`summarize_controller` block
-  per controller;
+  per controller (and, when ``smc`` is in the run, a ``vs_smc`` block of
+  ``harv_jax.evaluation.paired.paired_vs_reference`` in every other controller's);
 - ``envelope.json`` of ``harv-jax envelope``: :func:`envelope_summary` with :func:`summarize_envelope`
   blocks;
 - ``metrics.json`` of ``harv-jax fly``: :func:`flight_summary` (settings :data:`FLY_SETTING_KEYS` and the
@@ -21,7 +22,9 @@ import numpy as np
 
 from harv_jax.evaluation.metrics import RunMetrics
 from harv_jax.evaluation.monte_carlo import MCRunOutput, gate_summary, simplex_summary
+from harv_jax.evaluation.paired import mean_nr_at_run_s
 from harv_jax.task.criteria import OUTCOME_NAMES
+from harv_jax.task.spec import DT_S
 
 #: Key of the fraction of runs recovered, in every summary.
 RECOVERY_RATE = "recovery_rate"
@@ -41,11 +44,13 @@ def _by_channel(per_run: Any) -> dict[str, float]:
 
 
 def summarize_controller(
-    out: MCRunOutput, wall: dict[str, float], n_steps: int | None = None
+    out: MCRunOutput, wall: dict[str, float], n_steps: int | None = None, duration_s: float | None = None
 ) -> dict[str, Any]:
     """The per-controller block of ``summary.json`` (names relied on by users' scripts).
 
-    ``n_steps`` (steps per run) turns the hybrid's per-step flags into counts per run.
+    ``n_steps`` (steps per run) turns the hybrid's per-step flags into counts per run. ``duration_s`` (the
+    run length, s; default ``n_steps * DT_S``) is where not-recovered runs count in
+    ``t_recover_mean_nr_at_run_s`` (None when neither is given).
     """
     m = out.metrics
     outcome = np.asarray(m.outcome)
@@ -69,6 +74,8 @@ def summarize_controller(
         }
     counts = {name: int((outcome == code).sum()) for code, name in enumerate(OUTCOME_NAMES)}
     info = out.info_means
+    run_length_s = duration_s if duration_s is not None else (n_steps * DT_S if n_steps else None)
+    t_mean_nr = None if run_length_s is None else mean_nr_at_run_s(m.t_recover_s, rec, run_length_s)
 
     def per_run(key: str) -> float | None:
         """Mean over runs of the per-run count (n_steps given) or step fraction of a per-step flag."""
@@ -91,6 +98,7 @@ def summarize_controller(
             "p50": _pct(t_rec, 50),
             "p95": _pct(t_rec, 95),
         },
+        "t_recover_mean_nr_at_run_s": t_mean_nr,  # not-recovered runs counted at the run length
         "alpha_recovery_time_s": {  # |e_alpha| < 2 deg and ||omega|| < 0.17 rad/s from then on
             "fraction": float(np.mean(np.isfinite(t_alpha))),
             "p50": _pct(t_alpha[np.isfinite(t_alpha)], 50),
@@ -291,7 +299,8 @@ FLY_SETTING_KEYS = ("controller", "scenario", "switching", "seed", "duration_s",
 COMPARE_COLUMNS = (
     "scenario", "controller", "outcome", "recovery_time_s", "alpha_overshoot_deg", "omega_settling_time_s",
     "altitude_loss_ft", "control_tv_rad", "chatter_index_rad2", "constraint_violations",
-    "rate_saturation_fraction", "zeta_active_fraction", "supervisor_fallbacks",
+    "rate_saturation_fraction", "zeta_active_fraction", "supervisor_fallbacks", "recovery_time_nr_at_run_s",
+    "recovery_time_vs_smc",
 )  # fmt: skip
 
 # ----------------------------------------------------------------------------------------------------
@@ -299,19 +308,30 @@ COMPARE_COLUMNS = (
 
 Row = tuple[str, tuple[str, ...], str]
 
-MC_RECOVERY_ROWS: tuple[Row, ...] = (
-    ("recovery rate", (RECOVERY_RATE,), "pct"),
+#: Recovery time and altitude loss (the envelope table shows them too).
+MC_TIME_ROWS: tuple[Row, ...] = (
     ("recovery time mean [s]", ("recovery_time_s", "mean"), ".2f"),
     ("recovery time p50 [s]", ("recovery_time_s", "p50"), ".2f"),
+    ("recovery time mean, not recovered at run length [s]", ("t_recover_mean_nr_at_run_s",), ".2f"),
     ("recovery time p95 [s]", ("recovery_time_s", "p95"), ".2f"),
     ("altitude loss mean [ft]", ("altitude_loss_ft", "mean"), ",.0f"),
     ("altitude loss p95 [ft]", ("altitude_loss_ft", "p95"), ",.0f"),
+)
+MC_RECOVERY_ROWS: tuple[Row, ...] = (
+    ("recovery rate", (RECOVERY_RATE,), "pct"),
+    *MC_TIME_ROWS,
     ("control total variation mean [rad]", ("control_tv", "mean"), ".3g"),
     ("chatter index mean [rad²]", ("chatter_index", "mean"), ".3g"),
     ("position saturation fraction", ("saturation_fraction",), ".3f"),
     ("rate saturation fraction", ("rate_saturation_fraction",), ".3f"),
     ("safety interventions", ("safety_interventions",), ".4g"),
     ("left envelope (fraction of runs)", ("left_envelope_fraction",), ".3f"),
+)
+#: Against the SMC on the same runs (``vs_smc``; not-recovered runs at the run length).
+MC_VS_SMC_ROWS: tuple[Row, ...] = (
+    ("runs faster than smc by > 1 s", ("vs_smc", "faster_fraction"), "pct"),
+    ("runs slower than smc by > 1 s", ("vs_smc", "slower_fraction"), "pct"),
+    ("mean recovery time / smc's", ("vs_smc", "mean_ratio"), ".3f"),
 )
 #: Hybrid diagnostics (present for every controller in newer summaries; '–' where not applicable).
 MC_HYBRID_ROWS: tuple[Row, ...] = (
@@ -350,7 +370,7 @@ def envelope_rows(outcome_codes: list[str]) -> tuple[Row, ...]:
     return (
         ("recovery rate", (RECOVERY_RATE,), "pct"),
         *((f"outcome {c.lower()}", ("outcome_counts", c), "int") for c in outcome_codes),
-        *MC_RECOVERY_ROWS[1:6],
+        *MC_TIME_ROWS,
         *MC_HYBRID_ROWS,
         *WALL_ROWS,
     )

@@ -13,6 +13,7 @@ from harv_jax.evaluation.summary import (
     MC_HYBRID_ROWS,
     MC_OUTCOME_ROWS,
     MC_RECOVERY_ROWS,
+    MC_VS_SMC_ROWS,
     WALL_ROWS,
     Row,
     envelope_rows,
@@ -93,6 +94,15 @@ def mc_section(doc: Doc, summary: dict) -> None:
         for label, path, spec in MC_RECOVERY_ROWS + MC_HYBRID_ROWS
     )  # fmt: skip
     doc.table(*controller_table(ctrls, rows))
+    header, vs_rows = controller_table(ctrls, MC_VS_SMC_ROWS)
+    if vs_rows:
+        run_s = fmt(summary.get("duration_s"), "g")
+        doc.h(3, "Against the SMC, run by run")
+        doc.p(
+            "Every controller flies the same runs (common random numbers); run i of a controller is compared "
+            f"with run i of smc, a run not recovered counting at the run length ({run_s} s)."
+        )
+        doc.table(header, vs_rows)
     doc.h(3, "Terminal tracking errors [deg] (mean over the last second of each run)")
     doc.table(*controller_table(ctrls, terminal_rows()))
     doc.h(3, "Outcomes [runs]")
