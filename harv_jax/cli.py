@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import importlib
-import importlib.util
 import os
 import sys
 
@@ -41,9 +40,7 @@ def _root(
 COMMAND_MODULES = ("simulate", "fly", "train", "mc", "compare", "envelope", "report", "quickstart")
 
 for _name in COMMAND_MODULES:
-    _full = f"harv_jax.commands.{_name}"
-    if importlib.util.find_spec(_full) is not None:  # commands not built yet are absent
-        importlib.import_module(_full).register(app)
+    importlib.import_module(f"harv_jax.commands.{_name}").register(app)
 
 
 def use_all_cpu_cores() -> None:

@@ -20,8 +20,8 @@ from harv_jax.errors import UsageError
 from harv_jax.task.spec import ALPHA_MAX_RAD, ALPHA_MIN_RAD, DT_S, H0_FT
 
 POLICY_HELP = (
-    "rl/hybrid policy: run folder, .npz, checkpoint\\[@seed], shipped:fast (default), shipped:recovery, "
-    "shipped:paper-full, shipped:paper-partial."
+    "rl/hybrid policy: run folder, .npz, checkpoint\\[@seed], shipped:teacher (default), shipped:fast, "
+    "shipped:recovery, shipped:paper-full, shipped:paper-partial."
 )
 ZETA_HELP = (
     "Hybrid zeta schedule: simplex (the policy alone until a monitor hands over to the SMC for good), "
@@ -63,7 +63,7 @@ def real_number(text: str) -> float:
 
 
 def policy_option():
-    """``--policy`` (default None = the default shipped policy, ``shipped:fast``)."""
+    """``--policy`` (default None = the default shipped policy, ``shipped:teacher``)."""
     return typer.Option(None, help=POLICY_HELP)
 
 

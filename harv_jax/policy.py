@@ -329,7 +329,7 @@ from harv_jax.policies import DEFAULT_POLICY_SPEC, DEFAULT_SHIPPED, SHIPPED, SHI
 
 
 def shipped_path(name: str = DEFAULT_SHIPPED) -> Path:
-    """Path of a shipped policy: ``recovery`` (the default), ``paper-full`` or ``paper-partial``."""
+    """Path of a shipped policy (a name of ``harv_jax.policies.SHIPPED``; default ``teacher``)."""
     if name not in SHIPPED:
         raise UsageError(f"shipped policy {name!r} is unknown; allowed: {', '.join(SHIPPED)}")
     from importlib.resources import files
@@ -339,8 +339,9 @@ def shipped_path(name: str = DEFAULT_SHIPPED) -> Path:
 
 def resolve_policy(spec: str | Path | None) -> Policy:
     """Load a policy from a user's path, or ``None``/``"shipped"`` (the default shipped policy,
-    ``shipped:fast``), or ``"shipped:<name>"`` (``fast``, ``recovery``, ``paper-full``, ``paper-partial``). A
-    path may end in ``@<seed>`` to pick a learner of a multi-seed checkpoint (``ckpt_000010.msgpack@2``)."""
+    ``shipped:teacher``), or ``"shipped:<name>"`` (``teacher``, ``fast``, ``recovery``, ``paper-full``,
+    ``paper-partial``). A path may end in ``@<seed>`` to pick a learner of a multi-seed checkpoint
+    (``ckpt_000010.msgpack@2``)."""
     text = SHIPPED_PREFIX if spec is None else str(spec)
     if text == SHIPPED_PREFIX or text.startswith(SHIPPED_PREFIX + ":"):
         name = text.partition(":")[2] or DEFAULT_SHIPPED

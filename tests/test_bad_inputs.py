@@ -403,7 +403,7 @@ CASES: list[tuple[list[str], str]] = [
     (["report", "RUN", "--out", "FOREIGN", "--force"], "not written by harv-jax"),
     (["report", "RUN", "--out", "FILE"], "is a file"),
     # --- train: flags
-    (["train", "--steps", "1000000000000", "--out", "newrun"], "--steps"),
+    (["train", "--preset", "smoke", "--steps", "1000000000000", "--out", "newrun"], "--steps"),
     (["train", "--steps", "100000000000000000", "--out", "newrun"], "--steps 100000000000000000"),
     (["train", "--steps", "0", "--out", "newrun"], "--steps"),
     (["train", "--steps", "-1", "--out", "newrun"], "--steps -1"),

@@ -161,6 +161,30 @@ def test_resume_equals_continuous(trainer, full_run, tmp_path):
     assert trainer.num_traces() == 1  # resuming reused the compiled period
 
 
+def test_resume_restores_the_evaluation_history(trainer, tmp_path):
+    """Every history row, the period hook's (evaluation) entries included, equals the uninterrupted run's."""
+
+    def hook(p, state):  # a stand-in evaluation: a number computed from the parameters
+        leaves = jax.tree.leaves(jax.device_get(state.params))
+        return {
+            "eval/param_sum": np.asarray([float(np.sum(x[s])) for s in range(2) for x in leaves[:1]])
+        }, False
+
+    key = jax.random.key(CFG.seed)
+    full = run_training(key, ToyEnv(), TOY_PARAMS, CFG, run_dir=tmp_path / "full", trainer=trainer,
+                        period_hook=hook)  # fmt: skip
+    run_training(key, ToyEnv(), TOY_PARAMS, CFG, run_dir=tmp_path / "half", trainer=trainer,
+                 stop_after_periods=2, period_hook=hook)  # fmt: skip
+    resumed = run_training(key, ToyEnv(), TOY_PARAMS, CFG, run_dir=tmp_path / "half", trainer=trainer,
+                           resume=True, period_hook=hook)  # fmt: skip
+    assert len(resumed.history) == len(full.history)
+    for a, b in zip(full.history, resumed.history, strict=True):
+        assert a.keys() == b.keys()
+        for k in a:
+            if k not in ("wall_s", "period_s"):
+                np.testing.assert_array_equal(np.asarray(a[k]), np.asarray(b[k]), err_msg=k)
+
+
 def test_warm_start_from_a_trained_policy(trainer, full_run):
     """--init-policy: every seed starts from one policy (fine-tuning); a shape mismatch is named."""
     res, _ = full_run
@@ -324,11 +348,19 @@ def test_presets_load_and_bad_values():
 
 def test_presets_load_from_package_data():
     """The presets live once, as package data (what a non-editable install loads too)."""
-    assert presets.available_presets() == ["fast", "paper-full", "paper-partial", "recovery", "smoke"]
+    assert presets.available_presets() == [
+        "fast",
+        "paper-full",
+        "paper-partial",
+        "recovery",
+        "smoke",
+        "teacher",
+    ]
     assert str(presets.preset_path("smoke")) == str(presets.PRESET_DIR / "smoke.toml")
     assert not (REPO / "experiments" / "presets").exists()
     with pytest.raises(
-        UsageError, match="unknown preset .nope.; available: fast, paper-full, paper-partial, recovery, smoke"
+        UsageError,
+        match="unknown preset .nope.; available: fast, paper-full, paper-partial, recovery, smoke, teacher",
     ):
         presets.load_preset("nope")
 

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import typer
 
+from harv_jax.cli_options import real_number, whole_number
 from harv_jax.errors import UsageError
 
 
@@ -31,6 +32,13 @@ def _fmt(row: dict[str, Any], key: str) -> str:
     v = np.asarray(row[key], np.float64).reshape(-1)
     v = v[np.isfinite(v)]
     return f"{v.mean():.4g}" if v.size else "nan"
+
+
+def _per_seed(row: dict[str, Any], key: str, spec: str = ".2f") -> str:
+    """Each seed's value of ``key``, slash-separated (``1.00/0.98/1.00``)."""
+    if key not in row:
+        return "-"
+    return "/".join(format(x, spec) for x in np.asarray(row[key], np.float64).reshape(-1))
 
 
 def check_run_flags(periods: int | None, checkpoint_every: int | None, watchdog_s: float | None) -> None:
@@ -55,19 +63,15 @@ def check_periods(cfg: Any, periods: int | None) -> None:
         )
 
 
-#: Preset fields shown in the help of the flag that overrides them.
-_PRESETS_SHOWN = ("smoke", "paper-partial", "paper-full")
-
-
 @functools.cache
 def _shown_presets() -> tuple[tuple[str, Any], ...]:
-    """(name, PPOConfig) of the presets named in the help (those that load)."""
-    from harv_jax.training.presets import load_preset
+    """(name, PPOConfig) of every shipped preset, the default first (those that load)."""
+    from harv_jax.training.presets import DEFAULT_PRESET, available_presets, load_preset
 
     out = []
-    for name in _PRESETS_SHOWN:
+    for name in sorted(available_presets(), key=lambda n: n != DEFAULT_PRESET):
         try:
-            out.append((name, load_preset(name)[0]))
+            out.append((name, load_preset(name, check_env=False)[0]))
         except UsageError:
             continue
     return tuple(out)
@@ -130,6 +134,8 @@ def run_train(
     """
     if target_recovery is not None and not (math.isfinite(target_recovery) and 0 < target_recovery <= 1):
         raise UsageError(f"--target-recovery {target_recovery} must be in (0, 1]")
+    from harv_jax import runlock
+    from harv_jax.outdir import check_out_dir
     from harv_jax.ppo import checkpoint
     from harv_jax.ppo import config as ppo_config
     from harv_jax.training.in_loop import LOOP_KEY, parse_loop, split_loop
@@ -149,9 +155,11 @@ def run_train(
             raise UsageError(f"--resume writes into its own folder; drop --out {str(out)!r}")
         if not Path(resume).is_dir():
             raise UsageError(f"--resume {str(resume)!r} is not a directory")
+        runlock.check_free(resume, "--resume")
         plan = resume_plan(Path(resume))
         cfg, env_table, init_policy = plan.cfg, plan.env_table, plan.init_policy
         out_dir = Path(resume)
+        runlock.acquire(out_dir, "--resume")  # refused while another harv-jax process writes there
         checkpoint.remove_stale_tmp(out_dir / "checkpoints")  # left by a save that was killed
     else:
         if out is None:
@@ -160,6 +168,7 @@ def run_train(
         check_periods(cfg, overrides.get("num_periods"))
         if in_loop is not None:
             env_table = {**env_table, LOOP_KEY: parse_loop(in_loop)}
+        check_out_dir(out, force)  # a bad --out fails before the env is built
     loop = split_loop(env_table)[0]
 
     import jax
@@ -212,9 +221,9 @@ def run_train(
             "omega": _fmt(row, "episode/final_omega_radps"),
         }
         if "eval/recovered" in row:
-            last_eval[0] = (f"recovered {_fmt(row, 'eval/recovered')} "
-                            f"(spin {_fmt(row, 'eval/recovered_spin')}), "
-                            f"t_rec {_fmt(row, 'eval/t_recover_median_s')} s")  # fmt: skip
+            last_eval[0] = (f"recovered {_per_seed(row, 'eval/recovered')} "
+                            f"(spin {_per_seed(row, 'eval/recovered_spin')}), "
+                            f"t_rec mean {_per_seed(row, 'eval/t_recover_mean_s', '.3g')} s")  # fmt: skip
         fields["ev"] = last_eval[0]
         progress.update(task, completed=row["env_steps"], **fields)
         if not console.is_terminal:
@@ -248,6 +257,9 @@ def run_train(
     best = outputs.export_policies(out_dir, result.state, result.trainer, cfg, history, loop)
     summary = outputs.run_summary(out_dir, history, best, target_recovery)
     outputs.write_summary(out_dir / "summary.json", summary)
+    if "seeds" in summary:
+        console.print(f"harv-jax: {outputs.seed_verdict(summary['seeds'])}", soft_wrap=True, markup=False,
+                      highlight=False)  # fmt: skip
     return summary
 
 
@@ -256,37 +268,54 @@ def register(app: typer.Typer) -> None:
     def train(
         preset: str = typer.Option(
             None,
-            help="Preset (harv_jax/training/presets, shipped with the package): smoke, paper-partial, "
-            "paper-full, recovery (or a path to a .toml). Default smoke.",
+            help=f"Preset shipped with the package ({', '.join(name for name, _ in _shown_presets())}) or "
+            "a path to a .toml; the first is the default.",
         ),  # fmt: skip
-        steps: int = typer.Option(None, help="Env steps per seed (> 0). " + preset_defaults("total_steps")),
+        steps: int = typer.Option(
+            None, parser=whole_number, help="Env steps per seed (> 0). " + preset_defaults("total_steps")
+        ),
         num_envs: int = typer.Option(
-            None, help="Parallel envs per seed; divisible by the device count. " + preset_defaults("num_envs")
+            None,
+            parser=whole_number,
+            help="Parallel envs per seed; divisible by the device count. " + preset_defaults("num_envs"),
         ),
         unroll: int = typer.Option(
-            None, help="Rollout length per update (> 0). " + preset_defaults("unroll")
+            None, parser=whole_number, help="Rollout length per update (> 0). " + preset_defaults("unroll")
         ),
-        epochs: int = typer.Option(None, help="PPO epochs per update (> 0). " + preset_defaults("epochs")),
+        epochs: int = typer.Option(
+            None, parser=whole_number, help="PPO epochs per update (> 0). " + preset_defaults("epochs")
+        ),
         minibatches: int = typer.Option(
-            None, help="Minibatches per epoch; divides num_envs * unroll. " + preset_defaults("minibatches")
+            None,
+            parser=whole_number,
+            help="Minibatches per epoch; divides num_envs * unroll. " + preset_defaults("minibatches"),
         ),
-        lr: float = typer.Option(None, help="Adam learning rate (> 0). " + preset_defaults("lr")),
+        lr: float = typer.Option(
+            None, parser=real_number, help="Adam learning rate (> 0). " + preset_defaults("lr")
+        ),
         seeds: int = typer.Option(
-            None, help="Independent policies trained together (vmap). " + preset_defaults("num_seeds")
+            None,
+            parser=whole_number,
+            help="Independent policies trained together (vmap). " + preset_defaults("num_seeds"),
         ),
-        seed: int = typer.Option(None, help="Base seed (>= 0). " + preset_defaults("seed")),
+        seed: int = typer.Option(
+            None, parser=whole_number, help="Base seed (>= 0). " + preset_defaults("seed")
+        ),
         periods: int = typer.Option(
             None,
+            parser=whole_number,
             help="Host periods (progress line, metrics row, checkpoint chance) over the run; at most the "
             "number of PPO updates. " + preset_defaults("num_periods"),
         ),
         checkpoint_every: int = typer.Option(
             None,
+            parser=whole_number,
             help="Write a checkpoint every K periods (and after the last). "
             + preset_defaults("checkpoint_every"),
         ),
         watchdog_s: float = typer.Option(
             None,
+            parser=real_number,
             help="Stop a stalled run (exit code 3, checkpoints intact) when no period finishes for this many "
             "seconds, or when the process uses no CPU for min(this, 300) s. Default automatic: 3600 s for "
             "the first period (it includes compilation), then max(600 s, 20 x the first period), and 300 s "
@@ -306,6 +335,7 @@ def register(app: typer.Typer) -> None:
         ),
         target_recovery: float = typer.Option(
             None,
+            parser=real_number,
             help="Stop once every seed's recovery fraction in the [eval] batch reaches this (0-1].",
         ),
         in_loop: str = typer.Option(

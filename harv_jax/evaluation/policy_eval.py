@@ -123,12 +123,16 @@ def make_policy_eval(
     return evaluate
 
 
-def summarize_eval(out: dict[str, np.ndarray], is_spin: np.ndarray) -> dict[str, np.ndarray]:
-    """Per-seed summary of ``[S, N]`` evaluation outputs: recovery fractions and median recovery time.
+def summarize_eval(
+    out: dict[str, np.ndarray], is_spin: np.ndarray, duration_s: float | None = None
+) -> dict[str, np.ndarray]:
+    """Per-seed summary of ``[S, N]`` evaluation outputs: recovery fractions and recovery times.
 
     Returns:
         {"eval/recovered": [S], "eval/recovered_upset": [S], "eval/recovered_spin": [S],
-        "eval/t_recover_median_s": [S] (over recovered runs; NaN if none), "eval/tv_median_rad": [S]}.
+        "eval/t_recover_median_s": [S] (over recovered runs; NaN if none), "eval/tv_median_rad": [S]}, and
+        with ``duration_s`` "eval/t_recover_mean_s": [S], the mean with a run not recovered counted at
+        ``duration_s`` (medians flatter a policy that is fast on easy runs and slow on hard ones).
     """
     rec = np.asarray(out["recovered"], bool)
     t = np.asarray(out["t_recover_s"], np.float64)
@@ -139,6 +143,8 @@ def summarize_eval(out: dict[str, np.ndarray], is_spin: np.ndarray) -> dict[str,
         "eval/t_recover_median_s": med,
         "eval/tv_median_rad": np.median(np.asarray(out["tv_rad"], np.float64), axis=1),
     }
+    if duration_s is not None:
+        res["eval/t_recover_mean_s"] = np.where(rec & np.isfinite(t), t, duration_s).mean(axis=1)
     if (~spin).any():
         res["eval/recovered_upset"] = rec[:, ~spin].mean(axis=1)
     if spin.any():

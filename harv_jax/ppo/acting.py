@@ -58,6 +58,16 @@ def default_episode_metrics(info: dict[str, Any]) -> dict[str, jax.Array]:
             if k not in _RESERVED_INFO and not isinstance(v, dict) and jnp.ndim(v) == 0}  # fmt: skip
 
 
+def env_info_keys(env: Any, env_params: Any) -> tuple[str, ...]:
+    """Top-level keys of one step's ``info`` (found by tracing, no compute)."""
+
+    def one_step(key: jax.Array) -> Any:
+        _, state = env.reset(key, env_params)
+        return env.step(key, state, jnp.zeros((env.action_size,), jnp.float32), env_params)[4]
+
+    return tuple(sorted(jax.eval_shape(one_step, jax.random.key(0))))
+
+
 def episode_metric_names(env: Any, env_params: Any, ep_fn: EpisodeMetricsFn) -> tuple[str, ...]:
     """Names returned by ``ep_fn`` on one step's info (found by tracing, no compute)."""
 

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from harv_jax.errors import UsageError
-from harv_jax.guards import check_seed, check_train
+from harv_jax.guards import check_network, check_seed, check_train
 
 LR_SCHEDULES = ("constant", "linear")
 
@@ -51,6 +51,9 @@ class PPOConfig:
     seed: int = 0  # base seed; seed s uses fold_in(key(seed), s)
     num_periods: int = 20  # host log periods over the run
     checkpoint_every: int = 1  # checkpoint every K periods (and at the end)
+    bc_coef: float = 0.0  # weight of behaviour cloning toward a teacher's action at the start; 0: off
+    bc_coef_end: float = 0.0  # its weight at the end of the run (linear in the update count in between)
+    pg_start: float = 0.0  # fraction of the run before the policy-gradient term turns on (BC and critic only)
 
     def replace(self, **changes: Any) -> PPOConfig:
         """Copy with fields changed, validated."""
@@ -61,7 +64,13 @@ _FIELDS = {f.name: f for f in dataclasses.fields(PPOConfig)}
 _POSITIVE_INT = ("total_steps", "num_envs", "unroll", "epochs", "minibatches", "num_seeds", "num_periods",
                  "checkpoint_every")  # fmt: skip
 _POSITIVE_FLOAT = ("lr", "max_grad_norm", "clip_eps", "reward_scale")
-_NONNEG_FLOAT = ("clip_value_eps", "vf_coef", "ent_coef")
+_NONNEG_FLOAT = ("clip_value_eps", "vf_coef", "ent_coef", "bc_coef", "bc_coef_end")
+#: Bounds of float settings beyond their sign: an Adam step above 1 or a log std outside these diverges.
+_FLOAT_RANGES = {"lr": (0.0, 1.0), "init_log_std": (-20.0, 5.0), "pg_start": (0.0, 0.99)}
+#: Largest value of an integer setting (beyond it float arithmetic on the derived sizes is inexact).
+MAX_INT_SETTING = 2**53
+#: Most PPO epochs per update.
+MAX_EPOCHS = 1000
 
 
 #: Config fields whose command-line flag has a different name.
@@ -82,13 +91,22 @@ def validate(cfg: PPOConfig) -> PPOConfig:
         v = getattr(cfg, name)
         if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
             raise UsageError(f"{_flag(name)} {v!r} must be a positive integer")
-    for name in _POSITIVE_FLOAT + _NONNEG_FLOAT + ("gamma", "gae_lambda", "init_log_std"):
+        if v > MAX_INT_SETTING:
+            raise UsageError(
+                f"{_flag(name)} {v} is too large; give a whole number in [1, {MAX_INT_SETTING:,}]"
+            )
+    if cfg.epochs > MAX_EPOCHS:
+        raise UsageError(f"--epochs {cfg.epochs} is too large; give a whole number in [1, {MAX_EPOCHS}]")
+    for name in _POSITIVE_FLOAT + _NONNEG_FLOAT + ("gamma", "gae_lambda", "init_log_std", "pg_start"):
         v = getattr(cfg, name)
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
             raise UsageError(f"{_flag(name)} {v!r} must be a finite number")
     for name in _POSITIVE_FLOAT:
         if getattr(cfg, name) <= 0:
             raise UsageError(f"{_flag(name)} {getattr(cfg, name)} must be > 0")
+    for name, (lo, hi) in _FLOAT_RANGES.items():
+        if not lo <= getattr(cfg, name) <= hi:
+            raise UsageError(f"{_flag(name)} {getattr(cfg, name)} is outside the allowed [{lo:g}, {hi:g}]")
     for name in _NONNEG_FLOAT:
         if getattr(cfg, name) < 0:
             raise UsageError(f"{_flag(name)} {getattr(cfg, name)} must be >= 0")
@@ -104,6 +122,7 @@ def validate(cfg: PPOConfig) -> PPOConfig:
         or any(isinstance(h, bool) or not isinstance(h, int) or h <= 0 for h in cfg.hidden_sizes)
     ):
         raise UsageError(f"hidden_sizes {cfg.hidden_sizes!r} must be a non-empty list of positive integers")
+    check_network(cfg.hidden_sizes, cfg.num_seeds)
     if isinstance(cfg.seed, bool) or not isinstance(cfg.seed, int) or cfg.seed < 0:
         raise UsageError(f"--seed {cfg.seed!r} must be a non-negative integer")
     for name in ("normalize_advantage", "normalize_observations", "stagger_episodes"):
@@ -127,6 +146,8 @@ def check_devices(cfg: PPOConfig, num_devices: int) -> None:
 
 def from_dict(values: dict[str, Any], base: PPOConfig | None = None, source: str = "config") -> PPOConfig:
     """Build a validated config from ``base`` (default PPOConfig()) and a dict of field values."""
+    if not isinstance(values, dict):
+        raise UsageError(f"the PPO settings in {source} must be a table of name = value, got {values!r}")
     changes: dict[str, Any] = {}
     for k, v in values.items():
         if k not in _FIELDS:
@@ -134,9 +155,14 @@ def from_dict(values: dict[str, Any], base: PPOConfig | None = None, source: str
         if k == "hidden_sizes" and isinstance(v, list):
             v = tuple(v)
         if _FIELDS[k].type in ("float",) and isinstance(v, int) and not isinstance(v, bool):
-            v = float(v)
+            v = float(v) if abs(v) < 2**1023 else math.inf  # an integer beyond any float is not finite
         changes[k] = v
-    return validate(dataclasses.replace(base or PPOConfig(), **changes))
+    try:
+        return validate(dataclasses.replace(base or PPOConfig(), **changes))
+    except UsageError as e:
+        if source in ("config", "command line"):
+            raise
+        raise UsageError(f"{source}: {e}") from None
 
 
 def to_dict(cfg: PPOConfig) -> dict[str, Any]:
@@ -160,13 +186,22 @@ def load_file(path: Path | Traversable, tables: tuple[str, ...] = ()) -> tuple[P
         UsageError: the file is not valid TOML, has a table not in ``tables``, or a bad ``[ppo]`` value.
     """
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise UsageError(f"preset {str(path)!r} is not UTF-8 text; expected a TOML file") from None
+    except OSError as e:
+        raise UsageError(f"preset {str(path)!r} cannot be read ({e.strerror or type(e).__name__})") from None
     except tomllib.TOMLDecodeError as e:
         raise UsageError(f"preset {str(path)!r} is not valid TOML: {e}") from None
     unknown = set(data) - {"ppo", "description", *tables}
     if unknown:
         allowed = ", ".join(("ppo", *tables))
         raise UsageError(f"preset {str(path)!r} has unknown tables {sorted(unknown)}; allowed: {allowed}")
+    for name in ("ppo", *tables):
+        if name in data and not isinstance(data[name], dict):
+            raise UsageError(f"preset {str(path)!r}: {name} = {data[name]!r} must be a table ([{name}])")
+    if not isinstance(data.get("description", ""), str):
+        raise UsageError(f"preset {str(path)!r}: description = {data['description']!r} must be a string")
     cfg = from_dict(data.get("ppo", {}), source=f"preset {path.name}")
     return cfg, {k: v for k, v in data.items() if k != "ppo"}
 

@@ -99,6 +99,7 @@ class PPOBatch(NamedTuple):
         value: [M] behaviour critic's V(obs) (used by value clipping).
         advantage: [M] GAE advantage.
         target: [M] value target (lambda-return).
+        teacher_action: [M, A] a teacher's action in [-1, 1] at ``obs`` (None: no behaviour cloning).
     """
 
     obs: jax.Array
@@ -107,6 +108,7 @@ class PPOBatch(NamedTuple):
     value: jax.Array
     advantage: jax.Array
     target: jax.Array
+    teacher_action: jax.Array | None = None
 
 
 def ppo_loss(
@@ -118,13 +120,19 @@ def ppo_loss(
     ent_coef: float = 0.0,
     clip_value_eps: float | None = None,
     normalize_advantage: bool = True,
+    bc_coef: jax.Array | float = 0.0,
+    pg_on: jax.Array | float = 1.0,
 ) -> tuple[jax.Array, dict[str, jax.Array]]:
-    """Clipped-surrogate PPO loss with value loss and entropy bonus (SB3 / brax form).
+    """Clipped-surrogate PPO loss with value loss and entropy bonus (SB3 / brax form), and optionally a
+    behaviour-cloning term toward a teacher (DAPG-style).
 
-    ``loss = -mean(min(rho A, clip(rho, 1-eps, 1+eps) A)) + vf_coef * 0.5 * mean((target - V)^2)
-    - ent_coef * mean(entropy)``; with ``clip_value_eps`` the value error is the max of the unclipped and the
-    clipped (``V_old + clip(V - V_old, +-eps)``) squared errors. Advantages are standardised over the
-    minibatch when ``normalize_advantage``.
+    ``loss = -pg_on * mean(min(rho A, clip(rho, 1-eps, 1+eps) A)) + vf_coef * 0.5 * mean((target - V)^2)
+    - pg_on * ent_coef * mean(entropy) + bc_coef * BC``; with ``clip_value_eps`` the value error is the max
+    of the unclipped and the clipped (``V_old + clip(V - V_old, +-eps)``) squared errors. Advantages are
+    standardised over the minibatch when ``normalize_advantage``. With ``batch.teacher_action`` ``BC`` is
+    ``mean(|clip(mu, -1, 1) - a_teacher|^2 + 0.01 |mu - a_teacher|^2)`` summed over action components, mu
+    the policy mean (the small unclipped part keeps a gradient where mu is clipped); without it there is no
+    BC term at all.
 
     Args:
         params: actor and critic parameters.
@@ -135,6 +143,8 @@ def ppo_loss(
         ent_coef: entropy-bonus coefficient.
         clip_value_eps: value clip range (None: no value clipping).
         normalize_advantage: standardise advantages over the minibatch.
+        bc_coef: weight of the behaviour-cloning term (used only with ``batch.teacher_action``).
+        pg_on: factor on the policy-gradient and entropy terms (0: the actor learns from BC alone).
 
     Returns:
         (scalar loss, metrics dict of scalars).
@@ -158,7 +168,18 @@ def ppo_loss(
 
     entropy = jnp.mean(gaussian_entropy(log_std))
     entropy_loss = -ent_coef * entropy
-    total = policy_loss + value_loss + entropy_loss
+    if isinstance(pg_on, float) and pg_on == 1.0:  # a static 1 leaves the plain PPO loss's graph as it is
+        actor_loss = policy_loss + entropy_loss
+    else:
+        actor_loss = pg_on * (policy_loss + entropy_loss)
+    if batch.teacher_action is None:
+        total = actor_loss + value_loss
+        extra = {}
+    else:
+        err = jnp.clip(mean, -1.0, 1.0) - batch.teacher_action
+        bc = jnp.mean(jnp.sum(jnp.square(err) + 0.01 * jnp.square(mean - batch.teacher_action), axis=-1))
+        total = actor_loss + value_loss + bc_coef * bc
+        extra = {"bc_loss": bc, "bc_coef": jnp.asarray(bc_coef, jnp.float32)}
     metrics = {
         "total_loss": total,
         "policy_loss": policy_loss,
@@ -167,5 +188,6 @@ def ppo_loss(
         "approx_kl": jnp.mean((ratio - 1.0) - log_ratio),
         "clip_fraction": jnp.mean((jnp.abs(ratio - 1.0) > clip_eps).astype(jnp.float32)),
         "policy_std": jnp.mean(jnp.exp(log_std)),
+        **extra,
     }
     return total, metrics

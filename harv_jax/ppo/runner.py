@@ -192,18 +192,3 @@ def run_training(
         if stop:
             break
     return TrainResult(state, history, compile_s, trainer)
-
-
-def history_arrays(history: list[dict[str, Any]]) -> dict[str, np.ndarray]:
-    """Stack a history into name -> array [periods] (scalars) or [periods, S] (per-seed metrics)."""
-    if not history:
-        return {}
-    keys = [k for k in history[0] if all(k in row for row in history)]
-    return {k: np.stack([np.asarray(row[k], dtype=np.float64) for row in history]) for k in keys}
-
-
-def is_finite_metrics(metrics: dict[str, Any]) -> bool:
-    """True if every non-episode metric is finite (episode statistics are NaN when no episode ended)."""
-    return all(
-        bool(np.all(np.isfinite(np.asarray(v)))) for k, v in metrics.items() if not k.startswith("episode")
-    )

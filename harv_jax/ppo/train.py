@@ -34,6 +34,7 @@ from harv_jax.ppo import sharding, shuffle
 from harv_jax.ppo.acting import (
     EpisodeMetricsFn,
     default_episode_metrics,
+    env_info_keys,
     env_sizes,
     episode_length,
     episode_metric_names,
@@ -91,6 +92,7 @@ class Rollout(NamedTuple):
     truncation: jax.Array  # []
     final_value: jax.Array  # [] V(final_obs), used where the episode ended
     raw_obs: jax.Array  # [O] unnormalised observation (for the running statistics)
+    teacher_action: jax.Array | None = None  # [A] the env's teacher action at obs (behaviour cloning only)
 
 
 class Trainer(NamedTuple):
@@ -160,13 +162,27 @@ def make_train(
     clip_value = cfg.clip_value_eps if cfg.clip_value_eps > 0 else None
     batch_sharding = sharding.batch_sharding(mesh)
 
+    use_bc = cfg.bc_coef > 0 or cfg.bc_coef_end > 0
+    if use_bc and "teacher_action" not in env_info_keys(env, env_params):
+        raise ValueError("bc_coef > 0 needs an env whose step info has 'teacher_action' (a teacher env)")
+    n_updates = ppo_config.total_updates(cfg)
+
+    def loss_schedule(update_step: jax.Array) -> dict[str, jax.Array]:
+        """The BC weight (linear from bc_coef to bc_coef_end) and the policy-gradient switch (pg_start)."""
+        if not use_bc and cfg.pg_start == 0:
+            return {}  # the plain PPO loss, bit for bit
+        frac = update_step.astype(jnp.float32) / n_updates
+        out = {"pg_on": (frac >= cfg.pg_start).astype(jnp.float32)}
+        if use_bc:
+            out["bc_coef"] = cfg.bc_coef + (cfg.bc_coef_end - cfg.bc_coef) * frac
+        return out
+
     def normalise(normalizer: obs_norm.RunningStats, obs: jax.Array) -> jax.Array:
         return obs_norm.normalize(normalizer, obs) if cfg.normalize_observations else obs
 
-    def init_one(key: jax.Array, env_params: Any) -> TrainingState:
-        key_params, key_env, key_train = jax.random.split(key, 3)
+    def init_one(key: jax.Array, params: PPOParams, env_params: Any) -> TrainingState:
+        _, key_env, key_train = jax.random.split(key, 3)
         key_stagger = jax.random.fold_in(key_env, 1)  # a new stream: the other draws stay as without stagger
-        params = networks.init(key_params)
         obs, env_state = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(key_env, n_envs), env_params)
         obs = obs.astype(jnp.float32)
         if cfg.stagger_episodes:  # first episodes end at uniformly spread times (legged_gym's random start)
@@ -223,7 +239,8 @@ def make_train(
                 ep[f"info_{k}"] += jnp.sum(ended * ep_metrics[k])
             ep_ret = ep_ret * (1.0 - ended)
             ep_len = jnp.where(ended > 0, 0, ep_len)
-            transition = Rollout(obs_in, raw, log_prob, value, reward, term, trunc, final_value, obs)
+            teacher = info["teacher_action"].astype(jnp.float32) if use_bc else None
+            transition = Rollout(obs_in, raw, log_prob, value, reward, term, trunc, final_value, obs, teacher)
             return (env_state, next_obs.astype(jnp.float32), ep_ret, ep_len, ep), transition
 
         carry0 = (state.env_state, state.obs, state.episode_return, state.episode_length, ep0)
@@ -231,13 +248,13 @@ def make_train(
         state = state.replace(env_state=env_state, obs=obs, episode_return=ep_ret, episode_length=ep_len)
         return state, traj, ep
 
-    def sgd_step(carry: tuple, batch: PPOBatch) -> tuple[tuple, Metrics]:
+    def sgd_step(carry: tuple, batch: PPOBatch, schedule: dict[str, jax.Array]) -> tuple[tuple, Metrics]:
         params, opt_state = carry
         batch = jax.tree.map(lambda x: jax.lax.with_sharding_constraint(x, batch_sharding), batch)
         grad_fn = jax.value_and_grad(ppo_loss, has_aux=True)
         (_, metrics), grads = grad_fn(
             params, batch, networks, clip_eps=cfg.clip_eps, vf_coef=cfg.vf_coef, ent_coef=cfg.ent_coef,
-            clip_value_eps=clip_value, normalize_advantage=cfg.normalize_advantage,
+            clip_value_eps=clip_value, normalize_advantage=cfg.normalize_advantage, **schedule,
         )  # fmt: skip
         updates, opt_state = optimizer.update(grads, opt_state, params)
         params = optax.apply_updates(params, updates)
@@ -256,7 +273,9 @@ def make_train(
             cfg.gamma, cfg.gae_lambda,
         )  # fmt: skip
         # [T, N, ...] -> env-major [N * T, ...] so that the sharded env axis stays the leading block.
-        data = PPOBatch(traj.obs, traj.raw_action, traj.log_prob, traj.value, advantages, targets)
+        data = PPOBatch(traj.obs, traj.raw_action, traj.log_prob, traj.value, advantages, targets,
+                        traj.teacher_action)  # fmt: skip
+        schedule = loss_schedule(state.update_step)
         data = jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1).reshape((n_batch,) + x.shape[2:]), data)
 
         def epoch(carry: tuple, key: jax.Array) -> tuple[tuple, Metrics]:
@@ -264,7 +283,7 @@ def make_train(
             shuffled = jax.tree.map(
                 lambda x: jnp.take(x, perm, axis=0).reshape((cfg.minibatches, mb_size) + x.shape[1:]), data
             )
-            return jax.lax.scan(sgd_step, carry, shuffled)
+            return jax.lax.scan(lambda c, b: sgd_step(c, b, schedule), carry, shuffled)
 
         (params, opt_state), metrics = jax.lax.scan(
             epoch, (state.params, state.opt_state), jax.random.split(key_sgd, cfg.epochs)
@@ -302,6 +321,13 @@ def make_train(
 
     traces = [0]
 
+    def init_all(keys: jax.Array, env_params: Any) -> TrainingState:
+        # The networks of the seeds are initialised one after the other (lax.map), never as one batch: a
+        # batched orthogonal init is a batched LAPACK QR per layer, and XLA:CPU deadlocks when several of
+        # those run at once (see ``PPONetworks.init_seeds``). Same numbers as a vmap, seed by seed.
+        params = networks.init_seeds(jax.vmap(lambda k: jax.random.split(k, 3)[0])(keys))
+        return jax.vmap(init_one, in_axes=(0, 0, None))(keys, params, env_params)
+
     def period_all(state: TrainingState, env_params: Any) -> tuple[TrainingState, Metrics]:
         traces[0] += 1  # Python side effect: runs only while tracing
         return jax.vmap(period_one, in_axes=(0, None))(state, env_params)
@@ -310,7 +336,7 @@ def make_train(
     replicated = sharding.replicated(mesh)
     env_sharded = sharding.env_sharded(mesh)
     keys_example = jax.random.split(jax.random.key(0), cfg.num_seeds)
-    abstract = jax.eval_shape(jax.vmap(init_one, in_axes=(0, None)), keys_example, env_params)
+    abstract = jax.eval_shape(init_all, keys_example, env_params)
     state_shardings = TrainingState(
         params=jax.tree.map(lambda _: replicated, abstract.params),
         opt_state=jax.tree.map(lambda _: replicated, abstract.opt_state),
@@ -323,7 +349,7 @@ def make_train(
         update_step=replicated,
     )
     init = jax.jit(
-        jax.vmap(init_one, in_axes=(0, None)),
+        init_all,
         in_shardings=(replicated, replicated),
         out_shardings=state_shardings,
     )

@@ -9,6 +9,7 @@ from harv_jax.errors import UsageError
 from harv_jax.report.document import Doc, to_html, to_markdown
 from harv_jax.report.scan import MAX_DEPTH, REPORT_FILES, Section, provenance, run_kind, scan
 from harv_jax.report.sections import envelope_section, fly_section, mc_section
+from harv_jax.report.train_section import train_section
 
 
 def build_document(run_dir: Path, sections: list[Section], report_cmd: str) -> Doc:
@@ -38,6 +39,8 @@ def build_document(run_dir: Path, sections: list[Section], report_cmd: str) -> D
             doc.p("seed: " + ", ".join(str(s) for s in seeds) + (" (command reconstructed)" if rec else ""))
         if "summary.json" in sec.jsons and "controllers" in sec.jsons["summary.json"]:
             mc_section(doc, sec.jsons["summary.json"])
+        if "summary.json" in sec.jsons and "seeds" in sec.jsons["summary.json"]:
+            train_section(doc, sec.jsons["summary.json"])
         if "envelope.json" in sec.jsons:
             envelope_section(doc, sec.jsons["envelope.json"])
         if "metrics.json" in sec.jsons and "metrics" in sec.jsons["metrics.json"]:

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 from flax import struct
 
 from harv_jax.aircraft.params import AircraftParams
@@ -148,16 +147,3 @@ def nominal_spin(
     """The scenario's developed spin (30 s, nominal aircraft): (wind state [10], deflections [3])."""
     body, delta = jax.jit(lambda p: developed_spin_state(p, SPIN_DURATION_S, dt_s, h0_ft))(nominal)
     return to_wind(body), delta
-
-
-def bank_to_npz_dict(bank: SpinBank, provenance: dict) -> dict[str, np.ndarray]:
-    """Arrays to store a bank with ``np.savez`` (provenance as a JSON string in a 0-d unicode array)."""
-    import json
-
-    return {
-        "x_wind": np.asarray(bank.x_wind),
-        "delta_rad": np.asarray(bank.delta_rad),
-        "spin_s": np.asarray(bank.spin_s),
-        "spinning": np.asarray(bank.spinning),
-        "provenance": np.asarray(json.dumps(provenance, sort_keys=True)),
-    }

@@ -70,7 +70,7 @@ def make_eval_hook(
     def hook(p: int, state: TrainingState) -> tuple[dict[str, Any], bool]:
         if (p + 1) % ev.every and p + 1 != n_periods:
             return {}, False
-        out = summarize_eval(jax.device_get(evaluate(state.params, state.normalizer)), is_spin)
+        out = summarize_eval(jax.device_get(evaluate(state.params, state.normalizer)), is_spin, ev.duration_s)
         stop = target_recovery is not None and bool(np.all(out["eval/recovered"] >= target_recovery))
         if out_dir is not None:
             steps = (p + 1) * ppo_config.steps_per_period(cfg)

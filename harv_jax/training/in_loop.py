@@ -51,9 +51,14 @@ def parse_loop(text: str) -> str:
     return t
 
 
+#: Keys of a run's env settings that choose a wrapper of the env, not a setting of it.
+WRAPPER_KEYS = (LOOP_KEY, "teacher")
+
+
 def split_loop(env_table: dict[str, Any]) -> tuple[str, dict[str, Any]]:
-    """(loop, the env settings without it) of a run's env settings (``LOOP_KEY`` absent: ``none``)."""
-    rest = {k: v for k, v in env_table.items() if k != LOOP_KEY}
+    """(loop, the env settings without the wrapper keys) of a run's env settings (``LOOP_KEY`` absent:
+    ``none``; the teacher's key is read by ``harv_jax.training.teacher``)."""
+    rest = {k: v for k, v in env_table.items() if k not in WRAPPER_KEYS}
     return parse_loop(env_table.get(LOOP_KEY, "none")), rest
 
 

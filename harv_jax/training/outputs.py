@@ -1,9 +1,9 @@
 """What a training run leaves in its folder: metrics.csv, policy/, spin_bank.npz and summary.json.
 
 ``metrics.csv``: one row per period, mean, std and per-seed value of every metric. ``policy/``:
-``policy_seed<i>.npz`` for every seed, ``policy.npz`` and ``policy.stablehlo`` of the best seed by final mean
-return. ``spin_bank.npz``: the spin-reset states (if spin resets are on). ``summary.json``: see
-:func:`run_summary`.
+``policy_seed<i>.npz`` for every seed, ``policy.npz`` and ``policy.stablehlo`` of the best seed
+(:func:`best_seed`: on the evaluation batch, or by final mean return). ``spin_bank.npz``: the spin-reset
+states (if spin resets are on). ``summary.json``: see :func:`run_summary`.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ import numpy as np
 
 from harv_jax import policy as policy_api
 from harv_jax.env import EnvParams, settings
+from harv_jax.evaluation import seed_stats
 from harv_jax.policy import Policy, make_policy, select_seed
 from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo.config import PPOConfig
@@ -80,6 +81,20 @@ def export_seed_policies(
     return pols
 
 
+def best_seed(history: list[dict[str, Any]]) -> int:
+    """Index of the best seed of a run's last period: by its evaluation (recovered fraction, then mean
+    recovery time with not-recovered runs at the run length) if it has one, else by mean episode return."""
+    if not history:
+        return 0
+    last = history[-1]
+    if "eval/recovered" in last and "eval/t_recover_mean_s" in last:
+        rec = np.asarray(last["eval/recovered"], np.float64).reshape(-1)
+        t = np.asarray(last["eval/t_recover_mean_s"], np.float64).reshape(-1)
+        return int(np.lexsort((np.nan_to_num(t, nan=np.inf), -np.nan_to_num(rec, nan=-1.0)))[0])
+    ret = np.asarray(last["episode_return"], np.float64).reshape(-1)
+    return int(np.nanargmax(np.where(np.isfinite(ret), ret, -np.inf))) if np.any(np.isfinite(ret)) else 0
+
+
 def export_policies(
     out_dir: Path,
     state: TrainingState,
@@ -90,10 +105,11 @@ def export_policies(
 ) -> int:
     """Write ``policy/policy_seed<i>.npz`` per seed and ``policy.npz``/``policy.stablehlo`` of the best.
 
-    The best seed has the highest mean episode return in the last period; returns its index.
+    The best seed is picked on the last period's evaluation batch when the run evaluates (the highest
+    recovered fraction, then the shortest mean recovery time; :func:`best_seed`), else by the highest mean
+    episode return in the last period; returns its index.
     """
-    last = np.asarray(history[-1]["episode_return"], np.float64).reshape(-1) if history else np.zeros(1)
-    best = int(np.nanargmax(np.where(np.isfinite(last), last, -np.inf))) if np.any(np.isfinite(last)) else 0
+    best = best_seed(history)
     pdir = out_dir / "policy"
     pols = export_seed_policies(pdir, state, trainer, cfg, history[-1]["env_steps"] if history else 0, loop)
     policy_api.export_npz(pdir / "policy.npz", pols[best])
@@ -138,6 +154,7 @@ def run_summary(
         if target_recovery is not None:
             reached = [r for r in evals if np.all(np.asarray(r["eval/recovered"]) >= target_recovery)]
             summary["target_reached_at_env_steps"] = reached[0]["env_steps"] if reached else None
+        summary["seeds"] = seed_summary(evals[-1], target_recovery)
     for k in SUMMARY_METRICS:
         if history and k in history[-1]:
             first = np.asarray(history[0][k], np.float64).reshape(-1)
@@ -145,6 +162,37 @@ def run_summary(
             summary[k] = {"first_mean": _nanstat(np.nanmean, first), "last_mean": _nanstat(np.nanmean, last),
                           "last_std": _nanstat(np.nanstd, last)}  # fmt: skip
     return summary
+
+
+#: Evaluation entries summarised over seeds (``summary.json`` "seeds"), by their short name.
+SEED_METRICS = {"recovered": "eval/recovered", "recovered_spin": "eval/recovered_spin",
+                "t_recover_mean_s": "eval/t_recover_mean_s", "t_recover_median_s": "eval/t_recover_median_s",
+                "tv_median_rad": "eval/tv_median_rad"}  # fmt: skip
+
+
+def seed_summary(row: dict[str, Any], target_recovery: float | None = None) -> dict[str, Any]:
+    """Each seed's evaluation in ``row``, the IQM with a 95% bootstrap CI of each, and which seeds recover
+    at least ``target_recovery`` (default :data:`~harv_jax.evaluation.seed_stats.SEED_RECOVERY_BAR`) of
+    the evaluation batch."""
+    per_seed = {name: row[key] for name, key in SEED_METRICS.items() if key in row}
+    bar = seed_stats.SEED_RECOVERY_BAR if target_recovery is None else target_recovery
+    return seed_stats.seed_table(per_seed, bar)
+
+
+def seed_verdict(seeds: dict[str, Any]) -> str:
+    """One line: which seeds meet the recovery bar on the evaluation batch, with the IQMs."""
+    rec = seeds["per_seed"].get("recovered", [])
+    ok = seeds["seeds_meeting_bar"]
+    head = (f"all {len(rec)} seeds" if len(ok) == len(rec) else
+            f"{len(ok)} of {len(rec)} seeds ({', '.join(map(str, ok)) or 'none'})")  # fmt: skip
+    line = f"{head} recover >= {seeds['bar']:.1%} of the evaluation batch"
+    parts = []
+    for name, unit in (("recovered", ""), ("t_recover_mean_s", " s")):
+        if name in seeds["iqm"]:
+            q = seeds["iqm"][name]
+            parts.append(f"{name} IQM {q['iqm']:.4g}{unit} [95% CI {q['ci_low']:.4g}, {q['ci_high']:.4g}]")
+    values = "; ".join(f"seed {i}: {r:.1%}" for i, r in enumerate(rec))
+    return f"{line} ({values}); " + "; ".join(parts) if parts else line
 
 
 def write_summary(path: Path, summary: dict[str, Any]) -> None:

@@ -26,6 +26,7 @@ from harv_jax.ppo.train import Trainer, make_train
 from harv_jax.task.spaces import ACTION_SIZE, OBSERVATION_SIZE
 from harv_jax.training.environment import make_harv_env
 from harv_jax.training.outputs import save_spin_bank
+from harv_jax.training.teacher import TEACHER_KEY
 
 
 class TrainingSetup(NamedTuple):
@@ -83,6 +84,11 @@ def build_training(
     pol = None if init_policy is None else resolve_policy(init_policy)  # a bad file fails before the env
     if pol is not None:
         check_init_sizes(init_policy, pol, cfg)
+    if (cfg.bc_coef > 0 or cfg.bc_coef_end > 0) and env_table.get(TEACHER_KEY) is None:
+        raise UsageError(
+            f"bc_coef {cfg.bc_coef:g} / bc_coef_end {cfg.bc_coef_end:g} clone a teacher, and this run has "
+            'none; set [env] teacher = "smc-brake" (or another model-based controller) or both to 0'
+        )
     env, env_params = make_harv_env(env_table)
     trainer = make_train(env, cfg, env_params, episode_metrics_fn=harv_episode_metrics)
     init = None if init_policy is None else load_init_policy(init_policy, trainer, cfg, env_params, pol)

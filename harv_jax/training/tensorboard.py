@@ -23,7 +23,8 @@ class TensorBoardWriter:
         self.writer = SummaryWriter(str(log_dir), purge_step=purge_step)
 
     def write(self, row: dict[str, Any]) -> None:
-        """Mean over seeds of every finite metric of a history row, as ``train/<name>`` at its env steps."""
+        """Mean over seeds of every finite metric of a history row, as ``train/<name>`` at its env steps;
+        evaluation entries also per seed (``eval/<name>/seed<i>``) when there are several seeds."""
         if self.writer is None:
             return
         step = int(row["env_steps"])
@@ -33,6 +34,10 @@ class TensorBoardWriter:
             a = np.asarray(v, np.float64).reshape(-1)
             if np.any(np.isfinite(a)):
                 self.writer.add_scalar(f"train/{k}", float(np.nanmean(a)), step)
+            if k.startswith("eval/") and a.size > 1:
+                for i, x in enumerate(a):
+                    if np.isfinite(x):
+                        self.writer.add_scalar(f"{k}/seed{i}", float(x), step)
         self.writer.flush()
 
     def close(self) -> None:

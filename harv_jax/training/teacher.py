@@ -1,0 +1,93 @@
+"""A teacher in the env: a controller flown alongside the policy, whose command labels every state.
+
+``make_teacher_env(env, teacher)`` returns an env with the plain env's interface whose step adds
+``info["teacher_action"]``: the normalized action in [-1, 1]^3 the teacher controller (a registry controller,
+e.g. the braking SMC ``smc-brake``) commands at the state the policy acts in. The policy's action is what
+flies; the teacher only labels, on the states the learner visits (DAgger, Ross et al. 2011). The trainer
+turns the labels into a behaviour-cloning term of the PPO loss (``PPOConfig.bc_coef``, DAPG, Rajeswaran et
+al. 2017). The teacher's own state (e.g. the SMC's integral and its memory of the last command) runs on the
+flown trajectory and starts at the episode's initial deflections; its model aircraft is the episode's.
+
+In a preset: ``[env] teacher = "smc-brake"``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from harv_jax.control.base import Controller
+from harv_jax.env import Env, EnvState
+from harv_jax.env.recovery import with_auto_reset
+from harv_jax.task.spaces import command_to_action
+from harv_jax.training.in_loop import InLoopState
+
+#: Key of the teacher's controller name in a run's env settings (absent: no teacher).
+TEACHER_KEY = "teacher"
+
+
+class TeacherEnv(NamedTuple):
+    """Same interface as ``harv_jax.env.recovery.Env``; states are ``InLoopState`` (env + teacher state)."""
+
+    config: Any
+    reset: Any
+    step: Any
+    step_no_reset: Any
+    default_params: Any
+    reset_to: Any
+    batch_step: Any
+    teacher: str
+    observation_size: int
+    action_size: int
+
+
+def make_teacher_env(env: Env, teacher: Controller, name: str) -> TeacherEnv:
+    """Wrap ``env`` so that every step's info carries ``teacher``'s normalized action (``teacher_action``).
+
+    Args:
+        env: the plain recovery env.
+        teacher: the teacher controller (``Controller(init, apply)``).
+        name: its registry name (recorded as ``TeacherEnv.teacher``).
+    """
+
+    def _wrap(obs: jnp.ndarray, es: EnvState) -> tuple[jnp.ndarray, InLoopState]:
+        ctrl = teacher.init(es.episode.aircraft)
+        if hasattr(ctrl, "u_prev_rad"):  # the teacher's memory of the last command: the initial deflections
+            ctrl = ctrl.replace(u_prev_rad=es.delta_rad.astype(ctrl.u_prev_rad.dtype))
+        return obs, InLoopState(env=es, ctrl=ctrl)
+
+    def reset(key: jax.Array, params: Any) -> tuple[jnp.ndarray, InLoopState]:
+        return _wrap(*env.reset(key, params))
+
+    def reset_to(key: jax.Array, x_wind: jnp.ndarray, target_rad: jnp.ndarray, params: Any):
+        return _wrap(*env.reset_to(key, x_wind, target_rad, params))
+
+    def step_no_reset(key: jax.Array, state: InLoopState, action: jnp.ndarray, params: Any):
+        es = state.env
+        u_teacher, ctrl, _ = teacher.apply(state.ctrl, es.wind, es.target_rad, key)
+        ac = es.episode.aircraft
+        a_teacher = jnp.clip(command_to_action(u_teacher, ac.u_min_rad, ac.u_max_rad), -1.0, 1.0)
+        a_teacher = jnp.where(jnp.isfinite(a_teacher), a_teacher, 0.0)
+        obs, es_new, reward, terminated, truncated, info = env.step_no_reset(key, es, action, params)
+        info["teacher_action"] = a_teacher.astype(jnp.float32)
+        return obs, InLoopState(env=es_new, ctrl=ctrl), reward, terminated, truncated, info
+
+    step = with_auto_reset(step_no_reset, reset)
+
+    def batch_step(keys: jax.Array, states: InLoopState, actions: jnp.ndarray, params: Any):
+        return jax.vmap(step, in_axes=(0, 0, 0, None))(keys, states, actions, params)
+
+    return TeacherEnv(
+        config=env.config,
+        reset=reset,
+        step=step,
+        step_no_reset=step_no_reset,
+        default_params=env.default_params,
+        reset_to=reset_to,
+        batch_step=batch_step,
+        teacher=name,
+        observation_size=env.observation_size,
+        action_size=env.action_size,
+    )
