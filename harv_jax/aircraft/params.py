@@ -18,7 +18,7 @@ U_MIN_RAD = np.array([-0.436, -0.436, -0.524])
 U_MAX_RAD = np.array([0.175, 0.436, 0.524])
 #: Actuator rate limits (NASA TP-1999-206573): stabilator 40, aileron 100, rudder 82 deg/s.
 U_RATE_MAX_RADPS = np.array([40.0, 100.0, 82.0]) * RAD_PER_DEG
-#: Default fixed throttle. 0.2 as used in ../shared/FINDINGS.md probes; the paper holds eta fixed.
+#: Default fixed throttle (the paper holds eta fixed and does not give its value).
 DEFAULT_THROTTLE = 0.2
 
 

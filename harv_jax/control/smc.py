@@ -92,7 +92,7 @@ class SMCGains:
 def default_gains(dtype=None) -> SMCGains:
     """Default gains, chosen by the two-round study in ``experiments/smc_tuning/run.py``.
 
-    Starting point (../shared/FINDINGS.md): lambda1 2, lambda2 0.5, K 1, eps 0.2, phi 0.05. Round 1
+    Starting point (an untuned SMC): lambda1 2, lambda2 0.5, K 1, eps 0.2, phi 0.05. Round 1
     (one at a time) showed a plateau of 100% recovery around it and sharp losses for aggressive
     reaching (K 4, eps 0.5, phi 0.02, lambda1 4: limit cycles against the actuator rate limits);
     round 2 combined the softer settings: K 0.5 and phi 0.2 cut control total variation by ~40%

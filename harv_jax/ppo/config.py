@@ -41,7 +41,7 @@ class PPOConfig:
     clip_value_eps: float = 0.0  # value-loss clip range; 0 disables value clipping
     vf_coef: float = 0.5  # value-loss coefficient
     ent_coef: float = 0.0  # entropy bonus (SB3 default 0)
-    reward_scale: float = 0.01  # multiplies env rewards before GAE (FINDINGS: x0.01)
+    reward_scale: float = 0.01  # multiplies env rewards before GAE
     normalize_advantage: bool = True  # standardise advantages per minibatch
     normalize_observations: bool = True  # running mean/std normalisation in the learner
     init_log_std: float = -0.5  # initial Gaussian log std (actions in [-1, 1])

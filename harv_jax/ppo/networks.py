@@ -6,11 +6,11 @@ initialisation (gain sqrt(2) on hidden layers, 0.01 on the action-mean head, 1 o
 
 Squash or clip: the policy samples an unbounded Gaussian ``raw_action`` and the environment receives
 ``clip(raw_action, -1, 1)``. Log-probabilities and entropies are those of the unbounded Gaussian. This is
-what SB3 does for a ``Box`` action space with ``squash_output=False`` (the paper's setting) and what the
-measured probe in FINDINGS.md used. A tanh squash (brax's ``NormalTanhDistribution``) needs a Jacobian term
-in the log-probability, has no closed-form entropy, and shrinks the gradient near the deflection limits,
-which the recovery policy visits often (full aft stick, full rudder); clipping keeps the bang-bang corners
-reachable at a finite mean. The deterministic action is ``clip(mean, -1, 1)``.
+what SB3 does for a ``Box`` action space with ``squash_output=False`` (the paper's setting). A tanh squash
+(brax's ``NormalTanhDistribution``) needs a Jacobian term in the log-probability, has no closed-form
+entropy, and shrinks the gradient near the deflection limits, which the recovery policy visits often (full
+aft stick, full rudder); clipping keeps the bang-bang corners reachable at a finite mean. The deterministic
+action is ``clip(mean, -1, 1)``.
 """
 
 from __future__ import annotations
