@@ -79,14 +79,19 @@ def is_held_by_other(folder: str | Path) -> dict[str, Any] | None:
     return None
 
 
+def _in_use(folder: Path, flag: str, info: dict[str, Any]) -> UsageError:
+    """The one-line error for a folder another live harv-jax process holds."""
+    return UsageError(
+        f"{flag} {str(folder)!r} is in use by harv-jax {holder_text(info)}; wait for it to finish, "
+        "stop it, or choose another folder"
+    )
+
+
 def check_free(folder: str | Path, flag: str = "--out") -> None:
     """Raise UsageError naming the holder if another live process holds ``folder``'s lock; writes nothing."""
     info = is_held_by_other(folder)
     if info is not None:
-        raise UsageError(
-            f"{flag} {str(folder)!r} is in use by harv-jax {holder_text(info)}; wait for it to finish, "
-            "stop it, or choose another folder"
-        )
+        raise _in_use(Path(folder), flag, info)
 
 
 def acquire(folder: str | Path, flag: str = "--out") -> FileLock:
@@ -106,11 +111,7 @@ def acquire(folder: str | Path, flag: str = "--out") -> FileLock:
     try:
         lock.acquire()
     except Timeout:
-        info = read_holder(folder) or {"pid": "?", "host": "?"}
-        raise UsageError(
-            f"{flag} {str(folder)!r} is in use by harv-jax {holder_text(info)}; wait for it to finish, "
-            "stop it, or choose another folder"
-        ) from None
+        raise _in_use(folder, flag, read_holder(folder) or {"pid": "?", "host": "?"}) from None
     except OSError as e:
         raise UsageError(f"{flag} {str(folder)!r}: cannot create its lock file ({e.strerror or e})") from None
     old = read_holder(folder)

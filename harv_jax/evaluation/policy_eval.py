@@ -27,6 +27,7 @@ from harv_jax.control.base import Controller
 from harv_jax.control.rl import make_rl_controller
 from harv_jax.evaluation.closed_loop import closed_loop, score
 from harv_jax.evaluation.monte_carlo import sample_mc_inputs
+from harv_jax.evaluation.paired import times_nr_at_run_s
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 #: Key offsets of the evaluation batch (far from the training seeds and from the Monte Carlo's seed 0).
@@ -144,7 +145,7 @@ def summarize_eval(
         "eval/tv_median_rad": np.median(np.asarray(out["tv_rad"], np.float64), axis=1),
     }
     if duration_s is not None:
-        res["eval/t_recover_mean_s"] = np.where(rec & np.isfinite(t), t, duration_s).mean(axis=1)
+        res["eval/t_recover_mean_s"] = times_nr_at_run_s(t, rec, duration_s).mean(axis=1)
     if (~spin).any():
         res["eval/recovered_upset"] = rec[:, ~spin].mean(axis=1)
     if spin.any():

@@ -114,6 +114,37 @@ class InLoopEnv(NamedTuple):
     action_size: int
 
 
+def controller_at_reset(controller: Any, es: EnvState) -> Any:
+    """A controller's state at an episode's start: built on the episode's aircraft, its memory of the last
+    command (if it keeps one) at the episode's initial deflections (e.g. a spin reset's pro-spin controls)."""
+    ctrl = controller.init(es.episode.aircraft)
+    if hasattr(ctrl, "u_prev_rad"):
+        ctrl = ctrl.replace(u_prev_rad=es.delta_rad.astype(ctrl.u_prev_rad.dtype))
+    return ctrl
+
+
+def wrapped_env_functions(env: Env, controller: Any, step_no_reset: Any) -> tuple[Any, Any, Any, Any]:
+    """(reset, reset_to, step, batch_step) of an env whose states are ``InLoopState`` (``env``'s state plus
+    ``controller``'s, started by :func:`controller_at_reset`), given its ``step_no_reset``; ``step``
+    auto-resets as the plain env's does."""
+
+    def _wrap(obs: jnp.ndarray, es: EnvState) -> tuple[jnp.ndarray, InLoopState]:
+        return obs, InLoopState(env=es, ctrl=controller_at_reset(controller, es))
+
+    def reset(key: jax.Array, params: Any) -> tuple[jnp.ndarray, InLoopState]:
+        return _wrap(*env.reset(key, params))
+
+    def reset_to(key: jax.Array, x_wind: jnp.ndarray, target_rad: jnp.ndarray, params: Any):
+        return _wrap(*env.reset_to(key, x_wind, target_rad, params))
+
+    step = with_auto_reset(step_no_reset, reset)
+
+    def batch_step(keys: jax.Array, states: InLoopState, actions: jnp.ndarray, params: Any):
+        return jax.vmap(step, in_axes=(0, 0, 0, None))(keys, states, actions, params)
+
+    return reset, reset_to, step, batch_step
+
+
 def make_in_loop_env(env: Env, schedule: str = "gated", gains: HybridGains | None = None) -> InLoopEnv:
     """Wrap ``env`` so that its actions are the hybrid's u_RL under ``schedule`` (a ``ZETA_SCHEDULES`` name).
 
@@ -126,17 +157,6 @@ def make_in_loop_env(env: Env, schedule: str = "gated", gains: HybridGains | Non
 
     def _hybrid(action: jnp.ndarray):
         return make_hybrid(lambda _obs: action, cfg, gains)
-
-    def _wrap(obs: jnp.ndarray, es: EnvState) -> tuple[jnp.ndarray, InLoopState]:
-        ctrl = _hybrid(jnp.zeros((3,), es.delta_rad.dtype)).init(es.episode.aircraft)
-        ctrl = ctrl.replace(u_prev_rad=es.delta_rad.astype(ctrl.u_prev_rad.dtype))
-        return obs, InLoopState(env=es, ctrl=ctrl)
-
-    def reset(key: jax.Array, params: Any) -> tuple[jnp.ndarray, InLoopState]:
-        return _wrap(*env.reset(key, params))
-
-    def reset_to(key: jax.Array, x_wind: jnp.ndarray, target_rad: jnp.ndarray, params: Any):
-        return _wrap(*env.reset_to(key, x_wind, target_rad, params))
 
     def step_no_reset(key: jax.Array, state: InLoopState, action: jnp.ndarray, params: Any):
         es = state.env
@@ -152,11 +172,8 @@ def make_in_loop_env(env: Env, schedule: str = "gated", gains: HybridGains | Non
         }
         return obs, InLoopState(env=es_new, ctrl=ctrl), reward, terminated, truncated, info
 
-    step = with_auto_reset(step_no_reset, reset)
-
-    def batch_step(keys: jax.Array, states: InLoopState, actions: jnp.ndarray, params: Any):
-        return jax.vmap(step, in_axes=(0, 0, 0, None))(keys, states, actions, params)
-
+    # the hybrid's state does not depend on the action its policy returns: any stands in at a reset
+    reset, reset_to, step, batch_step = wrapped_env_functions(env, _hybrid(jnp.zeros((3,))), step_no_reset)
     return InLoopEnv(
         config=env.config,
         reset=reset,

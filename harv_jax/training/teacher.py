@@ -19,10 +19,9 @@ import jax
 import jax.numpy as jnp
 
 from harv_jax.control.base import Controller
-from harv_jax.env import Env, EnvState
-from harv_jax.env.recovery import with_auto_reset
+from harv_jax.env import Env
 from harv_jax.task.spaces import command_to_action
-from harv_jax.training.in_loop import InLoopState
+from harv_jax.training.in_loop import InLoopState, wrapped_env_functions
 
 #: Key of the teacher's controller name in a run's env settings (absent: no teacher).
 TEACHER_KEY = "teacher"
@@ -52,18 +51,6 @@ def make_teacher_env(env: Env, teacher: Controller, name: str) -> TeacherEnv:
         name: its registry name (recorded as ``TeacherEnv.teacher``).
     """
 
-    def _wrap(obs: jnp.ndarray, es: EnvState) -> tuple[jnp.ndarray, InLoopState]:
-        ctrl = teacher.init(es.episode.aircraft)
-        if hasattr(ctrl, "u_prev_rad"):  # the teacher's memory of the last command: the initial deflections
-            ctrl = ctrl.replace(u_prev_rad=es.delta_rad.astype(ctrl.u_prev_rad.dtype))
-        return obs, InLoopState(env=es, ctrl=ctrl)
-
-    def reset(key: jax.Array, params: Any) -> tuple[jnp.ndarray, InLoopState]:
-        return _wrap(*env.reset(key, params))
-
-    def reset_to(key: jax.Array, x_wind: jnp.ndarray, target_rad: jnp.ndarray, params: Any):
-        return _wrap(*env.reset_to(key, x_wind, target_rad, params))
-
     def step_no_reset(key: jax.Array, state: InLoopState, action: jnp.ndarray, params: Any):
         es = state.env
         u_teacher, ctrl, _ = teacher.apply(state.ctrl, es.wind, es.target_rad, key)
@@ -74,11 +61,7 @@ def make_teacher_env(env: Env, teacher: Controller, name: str) -> TeacherEnv:
         info["teacher_action"] = a_teacher.astype(jnp.float32)
         return obs, InLoopState(env=es_new, ctrl=ctrl), reward, terminated, truncated, info
 
-    step = with_auto_reset(step_no_reset, reset)
-
-    def batch_step(keys: jax.Array, states: InLoopState, actions: jnp.ndarray, params: Any):
-        return jax.vmap(step, in_axes=(0, 0, 0, None))(keys, states, actions, params)
-
+    reset, reset_to, step, batch_step = wrapped_env_functions(env, teacher, step_no_reset)
     return TeacherEnv(
         config=env.config,
         reset=reset,
