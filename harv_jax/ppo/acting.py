@@ -58,25 +58,24 @@ def default_episode_metrics(info: dict[str, Any]) -> dict[str, jax.Array]:
             if k not in _RESERVED_INFO and not isinstance(v, dict) and jnp.ndim(v) == 0}  # fmt: skip
 
 
-def env_info_keys(env: Any, env_params: Any) -> tuple[str, ...]:
-    """Top-level keys of one step's ``info`` (found by tracing, no compute)."""
+def _first_step_keys(env: Any, env_params: Any, of_info: Callable[[Any], Any]) -> tuple[str, ...]:
+    """Sorted keys of ``of_info(info)`` for one step's ``info`` (found by tracing, no compute)."""
 
     def one_step(key: jax.Array) -> Any:
         _, state = env.reset(key, env_params)
-        return env.step(key, state, jnp.zeros((env.action_size,), jnp.float32), env_params)[4]
+        return of_info(env.step(key, state, jnp.zeros((env.action_size,), jnp.float32), env_params)[4])
 
     return tuple(sorted(jax.eval_shape(one_step, jax.random.key(0))))
+
+
+def env_info_keys(env: Any, env_params: Any) -> tuple[str, ...]:
+    """Top-level keys of one step's ``info`` (found by tracing, no compute)."""
+    return _first_step_keys(env, env_params, lambda info: info)
 
 
 def episode_metric_names(env: Any, env_params: Any, ep_fn: EpisodeMetricsFn) -> tuple[str, ...]:
     """Names returned by ``ep_fn`` on one step's info (found by tracing, no compute)."""
-
-    def one_step(key: jax.Array) -> Any:
-        _, state = env.reset(key, env_params)
-        info = env.step(key, state, jnp.zeros((env.action_size,), jnp.float32), env_params)[4]
-        return ep_fn(info)
-
-    return tuple(sorted(jax.eval_shape(one_step, jax.random.key(0))))
+    return _first_step_keys(env, env_params, ep_fn)
 
 
 def make_evaluate(
