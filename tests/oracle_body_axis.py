@@ -1,6 +1,6 @@
 """Independent float64 numpy oracle of the F-18/HARV model, written in body axes.
 
-Written from ``../shared/MODEL.md`` (data, atmosphere, thrust, force/moment definitions) and textbook
+Written from docs/model.md (data, atmosphere, thrust, force/moment definitions) and textbook
 rigid-body mechanics (Stevens, Lewis & Johnson, *Aircraft Control and Simulation*, 3rd ed., sec. 1.3,
 2.4-2.5), *not* from harv_jax's closed-form wind-axis equations. It shares no code with harv_jax: it reads
 the aero CSV itself and uses the per-degree build-up of the table's README.
@@ -32,7 +32,7 @@ import numpy as np
 #: The package's aero table (the data under test is shared; the code that reads it is not).
 TABLE_PATH = Path(__file__).resolve().parents[1] / "harv_jax" / "aircraft" / "data" / "harv_aero_table.csv"
 
-# MODEL.md constants, restated here on purpose (independent of harv_jax.units / atmosphere).
+# docs/model.md constants, restated here on purpose (independent of harv_jax.units / atmosphere).
 G_FPS2 = 32.174
 RHO_SL_SLUGFT3 = 0.0023769
 FT_TO_M = 0.3048
@@ -46,7 +46,7 @@ H11_M = 11000.0
 ALPHA_CLAMP_DEG = (-14.0, 90.0)
 DEG = 180.0 / math.pi  # degrees per radian
 
-#: MODEL.md / IITM row defaults.
+#: docs/model.md / IITM row defaults.
 NOMINAL = {
     "mass_slug": 36100.0 / G_FPS2,
     "Ixx": 22789.0,
@@ -76,7 +76,7 @@ _IDX = {name: j for j, name in enumerate(COLUMNS)}
 
 
 def params_from_values(throttle: float, aero_scale: np.ndarray | None = None, **overrides: float) -> dict:
-    """Oracle parameter dict: MODEL.md nominal values, overridden by keyword."""
+    """Oracle parameter dict: docs/model.md nominal values, overridden by keyword."""
     p = dict(NOMINAL)
     p.update({k: float(v) for k, v in overrides.items()})
     p["throttle"] = float(throttle)
@@ -85,7 +85,7 @@ def params_from_values(throttle: float, aero_scale: np.ndarray | None = None, **
 
 
 def density(h_ft: float) -> float:
-    """1976 standard atmosphere density, slug/ft^3 (MODEL.md)."""
+    """1976 standard atmosphere density, slug/ft^3 (docs/model.md)."""
     h_m = FT_TO_M * h_ft
     if h_m < H11_M:
         theta = (T0_K - LAPSE_K_PER_M * h_m) / T0_K

@@ -1,4 +1,4 @@
-"""The implementations before the speed work of issue 18, kept as references for the equality tests.
+"""Slower reference implementations of the SMC step and the model, kept for the equality tests.
 
 Copied verbatim from the commit before the change (only the names changed): the SMC's fused Lie
 terms (one ``jax.linearize`` with 7 tangents), the LAPACK-SVD guarded solve, the aero table lookup
@@ -227,7 +227,7 @@ def forces_moments_reference(
 def derivatives_reference(
     x: jnp.ndarray, u: jnp.ndarray, params: AircraftParams, control_forces: bool = True
 ) -> jnp.ndarray:
-    """Wind-axis state derivative x_dot [10] of the paper's model (MODEL.md verified forms).
+    """Wind-axis state derivative x_dot [10] of the paper's model (docs/model.md forms).
 
     Args:
         x: [10] state [V, alpha, beta, p, q, r, mu, gamma, chi, h] (ft/s, rad, rad/s, ft).

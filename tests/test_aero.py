@@ -1,4 +1,4 @@
-"""Aerodynamic table lookup, coefficient build-up, atmosphere, thrust and nominal parameters (issue 2).
+"""Aerodynamic table lookup, coefficient build-up, atmosphere, thrust and nominal parameters.
 
 References are computed independently with numpy from the CSV (``oracle_body_axis``), not from
 ``harv_jax.aircraft.data_harv``.
@@ -218,7 +218,7 @@ def test_coefficients_match_readme_per_degree_build_up(x64):
 
 def test_atmosphere(x64):
     rho = jax.jit(density_slugft3)
-    # MODEL.md: rho(25,000 ft) = 1.06513e-3 slug/ft^3 (to the printed digits)
+    # docs/model.md: rho(25,000 ft) = 1.06513e-3 slug/ft^3 (to the printed digits)
     assert round(float(rho(25000.0)), 8) == 1.06513e-3
     assert float(rho(0.0)) == pytest.approx(0.0023769, rel=1e-15)
     # continuity at the tropopause, 11 km = 36,089.24 ft (troposphere and stratosphere formulas meet)

@@ -1,4 +1,4 @@
-"""The wind-axis derivatives against an independent body-axis float64 oracle (issue 2).
+"""The wind-axis derivatives against an independent body-axis float64 oracle.
 
 ``oracle_body_axis.py`` derives x_dot through rigid-body u, v, w / Euler-angle equations and converts back
 to wind-axis rates; it shares no code with harv_jax. Error metric, per component k of x_dot:
@@ -40,7 +40,7 @@ U_HI = np.array([0.175, 0.436, 0.524])
 
 # Sampling boxes, [V, alpha, beta, p, q, r, mu, gamma, chi, h].
 PI = np.pi
-#: The paper's reset bounds (MODEL.md), h over 0..45,000 ft so the stratosphere (> 36,089 ft) is hit.
+#: The paper's reset bounds (docs/model.md), h over 0..45,000 ft so the stratosphere (> 36,089 ft) is hit.
 RESET_LO = np.array([100, -0.175, -0.262, -2.094, -1.047, -0.524, -PI, -1.047, -PI, 0.0])
 RESET_HI = np.array([1500, 1.047, 0.262, 2.094, 1.047, 0.524, PI, 1.047, PI, 45000.0])
 #: The observation envelope and beyond: V to 2000, beta +-1.2, gamma +-1.4, rates to +-10 pi.

@@ -1,5 +1,5 @@
 """Integration of the flight model: body form vs wind form, symmetry, extreme manoeuvres, vmap/jit
-properties, non-finite handling, free fall and actuators (issue 2).
+properties, non-finite handling, free fall and actuators.
 
 Most checks share one batch of flights (``flights``): 60 s (6000 RK4 steps, dt = 0.01 s) of the body form
 (``rollout``) for every case in ``CASES``, each aircraft with its own parameters, in float64, plus runs of
@@ -58,7 +58,7 @@ CASES: dict[str, Case] = {
     "vertical_dive": Case([400, 0.1, 0, 0, -0.5, 0, 0, -1.2, 0, 25000], [0.1, 0, 0]),
     # q0 = 6 rad/s at 150 ft/s: alpha runs through +-180 deg several times
     "tumble": Case([150, 0.2, 0, 0, 6.0, 0, 0, 0.2, 0, 25000], [-0.436, 0, 0]),
-    # full aft stick, full right aileron and rudder (FINDINGS.md pro-spin): alpha 50-85 deg, steep descent
+    # full aft stick, full right aileron and rudder (pro-spin): alpha 50-85 deg, steep descent
     "spin": Case([300, 0.5, 0.05, 0.2, 0.1, 0.3, 0, 0, 0, 25000], [-0.436, 0.436, 0.524]),
     # symmetric initial conditions with da = dr = 0
     "sym_low_alpha": Case([600, 0.089, 0, 0, 0.05, 0, 0, 0.1, 0.3, 25000], [-0.02, 0, 0]),
@@ -140,8 +140,9 @@ def state_gap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 # side would fail them.
 TOL_SMOOTH = np.array([1e-6] + [1e-8] * 8 + [1e-5])
 # Along the tumble alpha crosses +-180 deg, where the wrapped, clamped table lookup jumps from the 90-deg row
-# to the -14-deg row (MODEL.md): the right-hand side is discontinuous there and RK4 drops to first order at
-# the crossing, so the two forms differ by O(dt * jump) (measured up to 1.1e-5 ft/s, 9.5e-6 rad, 4.7e-5 ft).
+# to the -14-deg row (docs/model.md): the right-hand side is discontinuous there and RK4 drops to first order
+# at the crossing, so the two forms differ by O(dt * jump) (measured up to 1.1e-5 ft/s, 9.5e-6 rad,
+# 4.7e-5 ft).
 TOL_DISCONTINUOUS = np.array([1e-3] + [1e-4] * 8 + [1e-3])
 
 
@@ -210,7 +211,7 @@ def test_symmetric_initial_conditions_stay_symmetric(flights):
 
 
 def test_symmetric_elevator_yaws_above_42deg_alpha(flights):
-    """Documented data oddity (MODEL.md): cn_del + cn_der != 0 for alpha >= 42 deg, so the tumble with
+    """Documented data oddity (docs/model.md): cn_del + cn_der != 0 for alpha >= 42 deg, so the tumble with
     de = -0.436 loses symmetry while the same flight with de = 0 keeps it."""
     assert np.max(np.abs(flights.body["tumble"][:, R])) > 0.1
     assert np.max(np.abs(flights.body["sym_tumble"][:, R])) <= 1e-12

@@ -83,7 +83,7 @@ def _checks(x, u, params):
     traj_ends = jax.vmap(rk4)(jnp.array([FD_H_TIME, -FD_H_TIME]))
     yd_t = jax.vmap(lambda z: _ydot(z, params))(traj_ends)
 
-    # wind-axis roll rate: MODEL.md form (p ca + r sa)/cb + tb q_w, mu_dot at gamma = 0, FD along f
+    # wind-axis roll rate: docs/model.md form (p ca + r sa)/cb + tb q_w, mu_dot at gamma = 0, FD along f
     a, b = x[1], x[2]
     q_w = jnp.cos(b) * (x[4] - jnp.tan(b) * (x[3] * jnp.cos(a) + x[5] * jnp.sin(a)) - f[1])
     x_level = x.at[7].set(0.0)
@@ -143,7 +143,7 @@ def test_relative_degree_two(checks):
 
 
 def test_wind_roll_rate(checks):
-    """p_w equals MODEL.md's (p ca + r sa)/cb + tb q_w; equals mu_dot at gamma = 0; Lie terms vs FD."""
+    """p_w equals docs/model.md's (p ca + r sa)/cb + tb q_w; equals mu_dot at gamma = 0; Lie terms vs FD."""
     c = checks(2)
     np.testing.assert_allclose(c["pw"], c["pw_model"], rtol=1e-12)
     np.testing.assert_allclose(c["pw_level"], c["mu_dot_level"], rtol=1e-10)

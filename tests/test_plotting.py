@@ -1,4 +1,4 @@
-"""Figures and number formatting of issue 14: unwrapped mu, shared band scales, overflow bins, rounding."""
+"""Figures and number formatting: unwrapped mu, shared band scales, overflow bins, rounding."""
 
 from __future__ import annotations
 

@@ -28,8 +28,8 @@ FAST_COMPILE = {"xla_backend_optimization_level": 0}
 
 
 def test_reset_bounds_are_the_paper_table():
-    # MODEL.md "Envelope and reset bounds" (paper Table): V 100-1500 ft/s, alpha -0.175-1.047, beta +-0.262,
-    # p +-2.094, q +-1.047, r +-0.524, mu +-3.142, gamma +-1.047
+    # docs/model.md "Envelope and reset bounds" (paper Table): V 100-1500 ft/s, alpha -0.175-1.047,
+    # beta +-0.262, p +-2.094, q +-1.047, r +-0.524, mu +-3.142, gamma +-1.047
     expected = [
         (100, 1500),
         (-0.175, 1.047),

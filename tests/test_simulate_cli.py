@@ -1,4 +1,4 @@
-"""`harv-jax simulate`: CSV + PNG on good input; one-line error and exit code 2 on bad input (issue 2)."""
+"""`harv-jax simulate`: CSV + PNG on good input; one-line error and exit code 2 on bad input."""
 
 from __future__ import annotations
 

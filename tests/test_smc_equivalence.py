@@ -1,4 +1,4 @@
-"""The cheaper SMC step (issue 18) equals the implementation before it: Lie terms, solve, command, MC.
+"""The SMC step equals the slower reference implementation: Lie terms, solve, command, MC.
 
 The references are the previous implementations, kept verbatim in ``tests/speed_reference.py``.
 """

@@ -1,5 +1,5 @@
-"""Straight, wings-level trim: MODEL.md's table to its printed digits, residual <= 1e-8, checked against
-the independent body-axis oracle as well (issue 2)."""
+"""Straight, wings-level trim: the reference trim table of docs/model.md to its printed digits, residual
+<= 1e-8, checked against the independent body-axis oracle as well."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ def test_level_flight_state_layout(x64):
 
 
 H_FT = 25000.0
-#: MODEL.md reference trim at 25,000 ft: V ft/s -> (alpha deg, de deg, throttle), printed digits.
+#: docs/model.md reference trim at 25,000 ft: V ft/s -> (alpha deg, de deg, throttle), printed digits.
 TRIM_TABLE = {
     400.0: (11.1793, -1.0172, 0.35107),
     600.0: (5.1012, -0.2571, 0.22842),

@@ -9,9 +9,10 @@
 | m, g          | mass, gravity                             | slug, ft/s^2|
 | J             | inertia [[Ixx,0,-Ixz],[0,Iyy,0],[-Ixz,0,Izz]] | slug ft^2 |
 
-Forms exactly as ``../shared/MODEL.md`` (the verified forms, not the paper's typeset equations):
+Forms exactly as docs/model.md (the verified forms, not the paper's typeset equations):
 wind-axis translational equations, body-axis rotational equations with the full Gamma = Ixx Izz -
-Ixz^2 form. Reference: Stevens, Lewis & Johnson (2016), eqs. 2.5-x; MODEL.md "Typos".
+Ixz^2 form. Reference: Stevens, Lewis & Johnson (2016), eqs. 2.5-x; docs/model.md,
+"Typos in the paper's typeset equations".
 """
 
 from __future__ import annotations
@@ -98,7 +99,7 @@ def body_rate_derivatives(
 def derivatives(
     x: jnp.ndarray, u: jnp.ndarray, params: AircraftParams, control_forces: bool = True
 ) -> jnp.ndarray:
-    """Wind-axis state derivative x_dot [10] of the paper's model (MODEL.md verified forms).
+    """Wind-axis state derivative x_dot [10] of the paper's model (docs/model.md forms).
 
     Args:
         x: [10] state [V, alpha, beta, p, q, r, mu, gamma, chi, h] (ft/s, rad, rad/s, ft).

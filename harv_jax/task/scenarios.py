@@ -1,7 +1,7 @@
 """Initial conditions: the paper's reset bounds (random upsets) and the developed-spin scenario.
 
 Reset bounds: ``task.spec.RESET_BOUNDS`` (paper Table "Bounds for random initialization of state",
-MODEL.md "Envelope and reset bounds"), here also as arrays (``RESET_LOW``/``RESET_HIGH``) and a traced
+docs/model.md, "Envelope and reset bounds"), here also as arrays (``RESET_LOW``/``RESET_HIGH``) and a traced
 pytree (``ResetBounds``); chi = 0 and h = ``task.spec.H0_FT`` (the paper starts its altitude record at
 0 ft; here h is the true altitude and plots show h - h0).
 

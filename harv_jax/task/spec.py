@@ -1,7 +1,7 @@
 """The paper's problem as numbers, each defined once and cited.
 
 Sources: the paper's Tables "Observation and Action Space" and "Bounds for random initialization of
-state" and Sec. IV-A/VI; ``../shared/MODEL.md`` ("Envelope (terminations) and reset bounds", trim table).
+state" and Sec. IV-A/VI; docs/model.md ("Envelope and reset bounds", "Reference trim").
 Units: ft, ft/s, rad, rad/s, s.
 """
 
@@ -14,7 +14,8 @@ from harv_jax.units import RAD_PER_DEG
 #: Control and integration step, s (paper: 0.01 s, 100 Hz).
 DT_S = 0.01
 #: Initial (true) altitude, ft. The paper starts its altitude record at 0 ft only to show the loss of
-#: altitude; the model needs a true altitude for the air density, and 25,000 ft is MODEL.md's reference.
+#: altitude; the model needs a true altitude for the air density, and 25,000 ft is the
+#: reference trim's altitude (docs/model.md).
 H0_FT = 25_000.0
 #: Altitude floor, ft: the ground (the paper has none; ``-inf`` disables it).
 H_FLOOR_FT = 0.0
