@@ -31,7 +31,7 @@ NAMES = ("V", "alpha", "beta", "p", "q", "r", "mu", "gamma")
 PROBE_LOW = (100.0, -0.5, -0.8, -5.0, -3.5, -3.0, -3.142, -1.047)
 PROBE_HIGH = (1500.0, 1.8, 0.8, 5.0, 3.5, 3.0, 3.142, 1.047)
 BINS = 6
-#: Runs per compiled call: the chunk these results were made with (the default before session 12).
+#: Runs per compiled call: the chunk these results were made with (``--chunk 250``).
 CHUNK = 250
 
 

@@ -1,11 +1,11 @@
-"""Where the simplex hybrid's control TV goes, and the deadline hold that cuts it (session 9).
+"""Where the simplex hybrid's control TV goes, and the deadline hold that cuts it.
 
     python experiments/hybrid_simplex/hold_study.py --out experiments/hybrid_simplex/results/hold_study.json
 
 On Monte Carlo key 123 (the tuning key; 1000 runs, 60 s, nominal unless ``--randomize``) with ``--policy``
 (default ``shipped:fast``):
 
-1. ``decomposition``: the SMC, RL-only and the simplex hybrid without the hold (the session-8 default) on the
+1. ``decomposition``: the SMC, RL-only and the simplex hybrid without the hold on the
    same runs, their mean TV per class of run (no hand-over, box, deadline); for the deadline hand-overs the
    TV before and after the hand-over (all three controllers split at the hybrid's hand-over step) and the
    state at the hand-over (V, ||omega||, |errors|).
@@ -33,11 +33,11 @@ from harv_jax.task.criteria import omega_norm_radps, tracking_errors
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 N_STEPS = 6000
-#: Runs per compiled call: the chunk these results were made with (the default before session 12).
+#: Runs per compiled call: the chunk these results were made with (``--chunk 250``).
 CHUNK = 250
-#: hold settings: (speed ft/s, ||omega|| rad/s, until s); speed 0: no hold (the session-8 default).
+#: hold settings: (speed ft/s, ||omega|| rad/s, until s); speed 0: no hold.
 VARIANTS: dict[str, tuple[float, float, float]] = {
-    "none (session 8)": (0.0, 0.0, 0.0),
+    "none (no hold)": (0.0, 0.0, 0.0),
     "200 ft/s, 0.5 rad/s, 30 s": (200.0, 0.5, 30.0),
     "200 ft/s, 0.5 rad/s, 25 s": (200.0, 0.5, 25.0),
     "250 ft/s, 0.5 rad/s, 30 s (the default)": (250.0, 0.5, 30.0),
@@ -88,7 +88,7 @@ def main() -> None:
     inputs = sample_mc_inputs(jax.random.key(a.seed), a.runs, harv(), randomize=a.randomize)
     ref = jnp.array([ALPHA_TARGET_RAD, 0.0, 0.0])
     act = resolve_policy(a.policy).deterministic
-    hybrid = make_hybrid(act, HybridConfig(schedule="simplex"), with_hold(*VARIANTS["none (session 8)"]))
+    hybrid = make_hybrid(act, HybridConfig(schedule="simplex"), with_hold(*VARIANTS["none (no hold)"]))
     opts = ControllerOptions(policy=a.policy)
     ctrls = {"smc": build_controller("smc", opts), "rl": build_controller("rl", opts), "hybrid": hybrid}
     outs = {k: run_mc(c, inputs, ref, N_STEPS, chunk_size=CHUNK)[0] for k, c in ctrls.items()}

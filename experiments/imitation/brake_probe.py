@@ -16,7 +16,7 @@ from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 N = int(sys.argv[1]) if len(sys.argv) > 1 else 256
-#: Runs per compiled call: the chunk these results were made with (the default before session 12).
+#: Runs per compiled call: the chunk these results were made with (``--chunk 250``).
 CHUNK = 250
 smc = build_controller("smc")
 nominal = harv()

@@ -1,4 +1,4 @@
-"""RL-only evaluation of recovery policies against the SMC on the same runs (issue: policies that recover).
+"""Evaluation of recovery policies against the SMC on the same runs, RL-only.
 
     python experiments/recovery_policy/evaluate.py POLICY.npz [POLICY.npz ...] --out results/eval.json
 

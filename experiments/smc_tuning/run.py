@@ -149,7 +149,7 @@ def part_tune2(n: int, seed: int) -> list[dict]:
 
 
 def start_gains() -> SMCGains:
-    """Round-1 starting point: the untuned gains of ../shared/FINDINGS.md (K 1, phi 0.05) with a
+    """Round-1 starting point: the untuned gains (lambda1 2, lambda2 0.5, K 1, eps 0.2, phi 0.05) with a
     60-75 deg mu/p_w blend band."""
     g = default_gains()
 
