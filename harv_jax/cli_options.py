@@ -220,3 +220,93 @@ def warn_loop_mismatch(names: Sequence[str], policy: str | None, zeta: str) -> N
 
     for line in loop_mismatches(names, ControllerOptions(policy=policy, zeta=zeta)):
         typer.echo(f"harv-jax: warning: {line}", err=True)
+
+
+DISTURBANCES_HELP = (
+    "Disturbances between the controllers and the aircraft, a comma list of: noise, delay, gust, model, lag; "
+    "or default (all five at their default levels: noise, delay and gust at the training env's maxima), or "
+    "none (the undisturbed runs). Every controller of one run meets the same noise, gust and aircraft."
+)
+
+
+def disturbances_option():
+    """``--disturbances`` (default ``none``)."""
+    return typer.Option("none", help=DISTURBANCES_HELP)
+
+
+def noise_scale_option():
+    """``--noise-scale`` (with ``noise``)."""
+    return typer.Option(
+        None,
+        parser=real_number,
+        help="Sensor-noise std, times the env's per-channel maximum (with noise; 1).",
+    )
+
+
+def delay_ms_option():
+    """``--delay-ms`` (with ``delay``)."""
+    return typer.Option(None, parser=real_number, help="Command delay, ms (with delay; default 20).")
+
+
+def gust_fps_option():
+    """``--gust-fps`` (with ``gust``)."""
+    return typer.Option(
+        None, parser=real_number, help="Gust std per body axis, ft/s (with gust; default 10)."
+    )
+
+
+def gust_tau_option():
+    """``--gust-tau-s`` (with ``gust``)."""
+    return typer.Option(
+        None, parser=real_number, help="Gust correlation time, s (with gust; default: per run U(1, 10) s)."
+    )
+
+
+def model_error_option():
+    """``--model-error`` (with ``model``)."""
+    return typer.Option(
+        None,
+        parser=real_number,
+        help="Plant aircraft drawn with this multiple of the randomization ranges, controllers built on the "
+        "nominal one (with model; default 1).",
+    )
+
+
+def actuator_lag_option():
+    """``--actuator-lag-s`` (with ``lag``)."""
+    return typer.Option(
+        None, parser=real_number, help="First-order actuator lag of the plant, s (with lag; default 0.03)."
+    )
+
+
+def knows_aircraft_option():
+    """``--controller-knows-aircraft``."""
+    return typer.Option(
+        False,
+        help="With a randomized aircraft, build the model-based controllers on the plant's own aircraft "
+        "instead of the nominal one (no model error).",
+    )
+
+
+def disturbance_spec_from_cli(
+    disturbances: str,
+    noise_scale: float | None = None,
+    delay_ms: float | None = None,
+    gust_fps: float | None = None,
+    gust_tau_s: float | None = None,
+    model_error: float | None = None,
+    actuator_lag_s: float | None = None,
+    randomize: bool = False,
+    controller_knows_aircraft: bool = False,
+):
+    """The ``DisturbanceSpec`` of the disturbance options (UsageError naming a bad one)."""
+    from harv_jax.evaluation.disturbance_spec import parse_disturbances
+
+    levels = {
+        "noise": noise_scale,
+        "delay": delay_ms,
+        "gust": gust_fps,
+        "model": model_error,
+        "lag": actuator_lag_s,
+    }
+    return parse_disturbances(disturbances, levels, gust_tau_s, randomize, controller_knows_aircraft)

@@ -6,7 +6,21 @@ from pathlib import Path
 
 import typer
 
-from harv_jax.cli_options import controllers_help, policy_option, real_number, whole_number, zeta_option
+from harv_jax.cli_options import (
+    actuator_lag_option,
+    controllers_help,
+    delay_ms_option,
+    disturbances_option,
+    gust_fps_option,
+    gust_tau_option,
+    knows_aircraft_option,
+    model_error_option,
+    noise_scale_option,
+    policy_option,
+    real_number,
+    whole_number,
+    zeta_option,
+)
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 
@@ -24,7 +38,19 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(
             0, parser=whole_number, help="Seed of initial states, aircraft and controller keys."
         ),
-        randomize: bool = typer.Option(False, help="Randomize mass, inertia and aero per run."),
+        randomize: bool = typer.Option(
+            False,
+            help="Randomize mass, inertia and aero per run; the controllers are built on the nominal "
+            "aircraft (model error; the same as model in --disturbances).",
+        ),
+        controller_knows_aircraft: bool = knows_aircraft_option(),
+        disturbances: str = disturbances_option(),
+        noise_scale: float | None = noise_scale_option(),
+        delay_ms: float | None = delay_ms_option(),
+        gust_fps: float | None = gust_fps_option(),
+        gust_tau_s: float | None = gust_tau_option(),
+        model_error: float | None = model_error_option(),
+        actuator_lag_s: float | None = actuator_lag_option(),
         chunk: int | None = typer.Option(
             None,
             parser=whole_number,
@@ -38,7 +64,12 @@ def register(app: typer.Typer) -> None:
         ),
     ) -> None:
         """Monte Carlo: same sampled aircraft/initial states for every controller; summary + figures."""
-        from harv_jax.cli_options import check_mc_options, command_line, warn_loop_mismatch
+        from harv_jax.cli_options import (
+            check_mc_options,
+            command_line,
+            disturbance_spec_from_cli,
+            warn_loop_mismatch,
+        )
         from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
         from harv_jax.guards import check_closed_loop_batch, check_seed
         from harv_jax.outdir import prepare_out_dir
@@ -46,6 +77,10 @@ def register(app: typer.Typer) -> None:
         names = parse_controllers(controller)
         check_mc_options(runs, target_alpha, duration, chunk)
         check_seed(seed)
+        spec = disturbance_spec_from_cli(
+            disturbances, noise_scale, delay_ms, gust_fps, gust_tau_s, model_error, actuator_lag_s, randomize,
+            controller_knows_aircraft,
+        )  # fmt: skip
         check_closed_loop_batch(runs, round(duration / DT_S), 10, chunk, len(names))
         # the heavy imports (jax) only after the arguments are checked: bad input fails fast
         from harv_jax.evaluation.mc_study import monte_carlo, write_monte_carlo
@@ -56,7 +91,7 @@ def register(app: typer.Typer) -> None:
         out_dir = prepare_out_dir(out, force)
         study = monte_carlo(
             names, policy, runs, target_alpha, duration, seed, randomize, chunk, zeta=zeta,
-            command=command_line(), progress=typer.echo,
+            command=command_line(), progress=typer.echo, disturbances=spec,
         )  # fmt: skip
         write_monte_carlo(out_dir, study, save_trajectories)
         typer.echo(f"wrote {out_dir}/summary.json, bands_*.png/.csv, terminal_errors.png, runs.csv")

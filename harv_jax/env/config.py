@@ -23,6 +23,12 @@ from flax import struct
 
 from harv_jax.aircraft.params import DEFAULT_THROTTLE, AircraftParams, harv
 from harv_jax.aircraft.randomize import default_aircraft_randomization
+from harv_jax.dynamics.disturbances import (
+    DEFAULT_DELAY_MAX_STEPS,
+    DEFAULT_GUST_STD_MAX_FPS,
+    DEFAULT_GUST_TAU_S,
+    DEFAULT_NOISE_STD_MAX,
+)
 from harv_jax.task.criteria import RECOVERED_TOL, Envelope, default_envelope
 from harv_jax.task.scenarios import RESET_HIGH, RESET_LOW
 from harv_jax.task.spec import (
@@ -216,10 +222,6 @@ class RandomizationParams:
     delay_max_steps: jnp.ndarray
 
 
-#: Default sensor-noise std per measured channel [V, alpha, beta, p, q, r, mu, gamma] (ft/s, rad, rad/s).
-DEFAULT_NOISE_STD_MAX = np.array([2.0, 0.005, 0.005, 0.01, 0.01, 0.01, 0.01, 0.005])
-#: Default range of the per-episode gust correlation time, s (min, max).
-DEFAULT_GUST_TAU_S = (1.0, 10.0)
 
 
 def default_randomization_params(enabled: bool = True, dtype=None) -> RandomizationParams:
@@ -235,10 +237,10 @@ def default_randomization_params(enabled: bool = True, dtype=None) -> Randomizat
         mass_on=ac.mass_on, mass_frac=ac.mass_frac, inertia_frac=ac.inertia_frac,
         aero_on=ac.aero_on, aero_damping_frac=ac.aero_damping_frac, aero_control_frac=ac.aero_control_frac,
         aero_static_frac=ac.aero_static_frac, aero_basic_frac=ac.aero_basic_frac,
-        gust_on=on, gust_std_max_fps=f(10.0), gust_tau_min_s=f(DEFAULT_GUST_TAU_S[0]),
+        gust_on=on, gust_std_max_fps=f(DEFAULT_GUST_STD_MAX_FPS), gust_tau_min_s=f(DEFAULT_GUST_TAU_S[0]),
         gust_tau_max_s=f(DEFAULT_GUST_TAU_S[1]),
         noise_on=on, noise_std_max=f(DEFAULT_NOISE_STD_MAX),
-        delay_on=on, delay_max_steps=jnp.asarray(2, dtype=jnp.int32),
+        delay_on=on, delay_max_steps=jnp.asarray(DEFAULT_DELAY_MAX_STEPS, dtype=jnp.int32),
     )  # fmt: skip
 
 

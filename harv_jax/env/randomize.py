@@ -18,10 +18,8 @@ Draws (``RandomizationParams`` holds the switches and ranges; defaults documente
 The env draws all of these from 16-bit uniforms (``uniform16``: two per PRNG word, resolution 1/65536).
 The aircraft groups and ranges are documented in ``harv_jax.aircraft.randomize``.
 
-Gust: a first-order Gauss-Markov (Ornstein-Uhlenbeck) process per body axis, the first-order
-approximation of the Dryden spectrum, stepped exactly:
-g_{k+1} = a g_k + std sqrt(1 - a^2) n_k, a = exp(-dt / tau), n_k ~ N(0, I). It starts in its stationary
-distribution. Being defined in body axes, it turns with the aircraft (a simplification).
+The gust, noise and delay models themselves are ``harv_jax.dynamics.disturbances`` (shared with the
+closed-loop evaluation); this module draws their per-episode levels.
 """
 
 from __future__ import annotations
@@ -37,6 +35,7 @@ from harv_jax.aircraft.randomize import (
     aircraft_from_uniform,
     uniform16,
 )
+from harv_jax.dynamics import disturbances
 from harv_jax.env.config import RandomizationParams
 from harv_jax.task.spaces import NUM_MEASURED
 
@@ -78,7 +77,8 @@ def nominal_episode(nominal: AircraftParams, rand: RandomizationParams) -> Episo
 NUM_EPISODE_UNIFORMS = NUM_AIRCRAFT_UNIFORMS + 4
 assert NUM_EPISODE_UNIFORMS == SAMPLE_UNIFORMS  # aircraft.randomize.sample_aircraft draws the same stream
 #: Number of N(0, 1) draws per step: gust 3, sensor noise NUM_MEASURED.
-NUM_STEP_NORMALS = 3 + NUM_MEASURED
+NUM_STEP_NORMALS = disturbances.NUM_STEP_NORMALS
+assert disturbances.NUM_NOISY_STATES == NUM_MEASURED
 
 
 def episode_from_uniform(
@@ -124,39 +124,22 @@ def sample_episode(
     return episode_from_uniform(u01, nominal, rand, max_delay_steps)
 
 
-def normals_from_uniform(u01: jnp.ndarray) -> jnp.ndarray:
-    """[2m] independent N(0, 1) draws from [2m] U(0, 1) draws (Box-Muller).
-
-    Lets the env make one PRNG call per step (see ``recovery``); u in [0, 1) is mapped to 1 - u in
-    (0, 1] so that the logarithm stays finite. With ``uniform16`` draws the radius is at most
-    sqrt(-2 ln(0.5 / 65536)) = 4.85, i.e. the normal tails are cut at 4.85 std (probability 1.2e-6).
-    """
-    m = u01.shape[-1] // 2
-    radius = jnp.sqrt(-2.0 * jnp.log1p(-u01[..., :m]))
-    angle = (2.0 * jnp.pi) * u01[..., m : 2 * m]
-    return jnp.concatenate([radius * jnp.cos(angle), radius * jnp.sin(angle)], axis=-1)
+#: Box-Muller normals from uniforms (the one implementation: ``dynamics.disturbances``).
+normals_from_uniform = disturbances.normals_from_uniform
 
 
 def gust_init(normal3: jnp.ndarray, episode: EpisodeParams) -> jnp.ndarray:
     """[3] initial body-axis gust, ft/s, from the stationary distribution, given [3] N(0, 1) draws."""
-    return episode.gust_std_fps * normal3
+    return disturbances.gust_init(normal3, episode.gust_std_fps)
 
 
 def gust_step(
     gust_fps: jnp.ndarray, episode: EpisodeParams, dt_s: float, normal3: jnp.ndarray
 ) -> jnp.ndarray:
-    """Advance the [3] body-axis OU gust by dt_s (exact discretization; stationary std kept).
-
-    Args:
-        gust_fps: [3] current gust, ft/s.
-        episode: episode parameters (gust std and correlation time).
-        dt_s: step, s.
-        normal3: [3] N(0, 1) draws.
-    """
-    a = jnp.exp(-dt_s / episode.gust_tau_s)
-    return a * gust_fps + episode.gust_std_fps * jnp.sqrt(1.0 - a * a) * normal3
+    """Advance the [3] body-axis OU gust by dt_s (``dynamics.disturbances.gust_step``)."""
+    return disturbances.gust_step(gust_fps, episode.gust_std_fps, episode.gust_tau_s, dt_s, normal3)
 
 
 def sensor_noise(normal8: jnp.ndarray, episode: EpisodeParams) -> jnp.ndarray:
     """[8] additive sensor noise for the measured observations from [8] N(0, 1) draws."""
-    return episode.noise_std * normal8
+    return disturbances.sensor_noise(normal8, episode.noise_std)

@@ -56,6 +56,7 @@ from flax import struct
 
 from harv_jax.aircraft.aero import wrap_angle_rad
 from harv_jax.dynamics import BodyState, from_wind, is_finite, plant_step
+from harv_jax.dynamics.disturbances import delayed_command, push_command
 from harv_jax.dynamics.state import WIND_INDEX
 from harv_jax.env import randomize, reward
 from harv_jax.env.config import EnvConfig, EnvParams, default_params
@@ -279,9 +280,9 @@ def make_env(config: EnvConfig | None = None) -> Env:
         ac = ep.aircraft
         a = jnp.clip(action, -1.0, 1.0)
         cmd = action_to_command(a, ac.u_min_rad, ac.u_max_rad)
-        buffer = jnp.concatenate([cmd[None], state.cmd_buffer_rad[:-1]], axis=0)
+        buffer = push_command(state.cmd_buffer_rad, cmd)
         body, delta, x = plant_step(
-            state.aircraft, state.delta_rad, buffer[ep.delay_steps], ac, dt_s, state.gust_fps
+            state.aircraft, state.delta_rad, delayed_command(buffer, ep.delay_steps), ac, dt_s, state.gust_fps
         )
         if dr:
             normals = randomize.normals_from_uniform(u01)

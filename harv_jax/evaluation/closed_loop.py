@@ -6,6 +6,13 @@ One step (dt_s, controller at the plant rate):
     u_k      = controller.apply(ctrl_state, x_k, reference, key_k)
     state_k+1, delta_k+1 = plant_step(state_k, delta_k, u_k, params, dt_s)  (actuator, RK4: dynamics.plant)
 
+With disturbances (``disturbance``: ``harv_jax.dynamics.disturbances``, the training env's model) the
+controller sees x_k plus sensor noise, the plant flies the command ``delay_steps`` old, with the body-axis
+gust; the recorded and scored states are the true ones, relative to the air mass (``air_relative``: the
+angles the aircraft flies at; a 10 ft/s gust at 300 ft/s moves the inertial sideslip by ~2 deg, twice the
+criterion's tolerance, while the aerodynamic one stays put). ``model_params`` builds the controller on another
+aircraft than the plant's (model error: e.g. the nominal aircraft while the plant flies a randomized one).
+
 Everything is vmappable over aircraft (``params``), initial states, references and keys; the number
 of steps is static. A non-finite command is replaced by the current deflection; a non-finite state
 is never propagated: the last finite state is held and ``nonfinite`` is set (the metrics turn it
@@ -22,6 +29,7 @@ from flax import struct
 
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
+from harv_jax.dynamics import disturbances as dist
 from harv_jax.dynamics.plant import plant_step
 from harv_jax.dynamics.state import BodyState, from_wind, is_finite, to_wind
 from harv_jax.evaluation.metrics import RunMetrics, compute_metrics
@@ -67,6 +75,13 @@ class ClosedLoopResult(struct.PyTreeNode):
     nonfinite: jnp.ndarray
 
 
+def air_relative(body: BodyState, gust_fps: jnp.ndarray) -> jnp.ndarray:
+    """The wind state [10] relative to the air mass moving at the body-axis gust ``gust_fps`` [3]: V, alpha,
+    beta as air data measure them (the aerodynamics see the same velocity), mu, gamma, chi about the
+    air-relative velocity; p, q, r and h are unchanged. With a zero gust it equals ``to_wind(body)``."""
+    return to_wind(body.replace(uvw_fps=body.uvw_fps - gust_fps))
+
+
 def _as_body(x0: BodyState | jnp.ndarray) -> BodyState:
     return x0 if isinstance(x0, BodyState) else from_wind(x0)
 
@@ -82,6 +97,10 @@ def closed_loop(
     delta0_rad: jnp.ndarray | None = None,
     record_every: int = 1,
     ctrl_state: Any = None,
+    disturbance: dist.DisturbanceParams | None = None,
+    disturbance_key: jax.Array | None = None,
+    max_delay_steps: int = 0,
+    model_params: AircraftParams | None = None,
 ) -> ClosedLoopResult:
     """Fly ``controller`` for ``n_steps`` plant steps.
 
@@ -95,8 +114,14 @@ def closed_loop(
         dt_s: plant step, s (must equal the controller's own step, e.g. ``SMCConfig.dt_s``).
         delta0_rad: [3] initial deflections (default 0; e.g. the pro-spin controls).
         record_every: keep every k-th sample (static; n_steps must be a multiple of it).
-        ctrl_state: initial controller state (default ``controller.init(params)``, with its ``u_prev_rad``
-            set to ``delta0_rad`` if it has one).
+        ctrl_state: initial controller state (default ``controller.init(model_params)``, with its
+            ``u_prev_rad`` set to ``delta0_rad`` if it has one).
+        disturbance: sensor noise, command delay and gust levels (None: none, the undisturbed loop).
+        disturbance_key: PRNG key of the disturbance draws (required with ``disturbance``; the same key
+            gives every controller the same noise sequence and gust).
+        max_delay_steps: static size of the command FIFO minus one; ``disturbance.delay_steps`` is
+            clipped to it.
+        model_params: the aircraft the controller is built on (default ``params``, the plant's).
 
     Returns:
         ClosedLoopResult.
@@ -106,7 +131,12 @@ def closed_loop(
     body0 = _as_body(x0)
     dtype = body0.uvw_fps.dtype
     delta0 = jnp.zeros((3,), dtype=dtype) if delta0_rad is None else jnp.asarray(delta0_rad, dtype=dtype)
-    cstate0 = controller.init(params) if ctrl_state is None else ctrl_state
+    if disturbance is not None and disturbance_key is None:
+        raise ValueError("closed_loop: a disturbance needs a disturbance_key")
+    if max_delay_steps < 0:
+        raise ValueError(f"closed_loop: max_delay_steps={max_delay_steps}; allowed: >= 0")
+    model = params if model_params is None else model_params
+    cstate0 = controller.init(model) if ctrl_state is None else ctrl_state
     if ctrl_state is None and hasattr(cstate0, "u_prev_rad"):
         # the controller's memory of its last command starts at the actual deflections (the hybrid's
         # rate box is relative to it; the SMC holds it if a command is non-finite)
@@ -125,18 +155,53 @@ def closed_loop(
         rec = (x, delta_new, u, info)
         return (state_new, delta_new, cstate_new, bad | ~u_ok | ~s_ok), rec
 
-    def chunk(carry, keys):
-        carry, recs = jax.lax.scan(step, carry, keys)
-        return carry, jax.tree.map(lambda r: r[0], recs)
+    def disturbed_step(carry, keys_k):
+        (state, delta, cstate, bad), (buffer, gust, noise8) = carry
+        key_k, dkey_k = keys_k
+        x = air_relative(state, gust)
+        u, cstate_new, info = controller.apply(cstate, dist.measured(x, noise8), reference_rad, key_k)
+        u_ok = jnp.all(jnp.isfinite(u))
+        u = jnp.where(u_ok, u, delta)
+        buffer = dist.push_command(buffer, u)
+        u_plant = dist.delayed_command(buffer, delay_steps)
+        state_new, delta_new, _ = plant_step(state, delta, u_plant, params, dt_s, gust)
+        s_ok = is_finite(state_new)
+        state_new = jax.tree.map(lambda a, b: jnp.where(s_ok, a, b), state_new, state)
+        normals = dist.step_normals(dkey_k, dtype)
+        gust = dist.gust_step(gust, disturbance.gust_std_fps, disturbance.gust_tau_s, dt_s, normals[:3])
+        noise8 = dist.sensor_noise(normals[3 : 3 + dist.NUM_NOISY_STATES], disturbance.noise_std)
+        rec = (x, delta_new, u, info)
+        return ((state_new, delta_new, cstate_new, bad | ~u_ok | ~s_ok), (buffer, gust, noise8)), rec
 
     keys = jax.random.split(key, n_steps)
     carry0 = (body0, delta0, cstate0, jnp.asarray(False))
+    if disturbance is None:
+        body_fn, xs = step, keys
+    else:
+        delay_steps = jnp.clip(jnp.asarray(disturbance.delay_steps, jnp.int32), 0, max_delay_steps)
+        dkeys = jax.random.split(disturbance_key, n_steps + 1)
+        normals0 = dist.step_normals(dkeys[0], dtype)
+        gust0 = dist.gust_init(normals0[:3], disturbance.gust_std_fps).astype(dtype)
+        noise0 = dist.sensor_noise(normals0[3 : 3 + dist.NUM_NOISY_STATES], disturbance.noise_std)
+        buffer0 = jnp.broadcast_to(delta0, (max_delay_steps + 1, 3))
+        carry0 = (carry0, (buffer0, gust0, noise0.astype(dtype)))
+        body_fn, xs = disturbed_step, (keys, dkeys[1:])
+
+    def chunk(carry, xs_chunk):
+        carry, recs = jax.lax.scan(body_fn, carry, xs_chunk)
+        return carry, jax.tree.map(lambda r: r[0], recs)
+
     if record_every == 1:
-        carry, recs = jax.lax.scan(step, carry0, keys)
+        carry, recs = jax.lax.scan(body_fn, carry0, xs)
     else:
         carry, recs = jax.lax.scan(
-            chunk, carry0, keys.reshape((n_steps // record_every, record_every) + keys.shape[1:])
+            chunk,
+            carry0,
+            jax.tree.map(lambda a: a.reshape((n_steps // record_every, record_every) + a.shape[1:]), xs),
         )
+    gust_final = None
+    if disturbance is not None:
+        carry, (_, gust_final, _) = carry
     state, delta, cstate, bad = carry
     x_rec, delta_rec, u_rec, info_rec = recs
     n_rec = n_steps // record_every
@@ -150,7 +215,7 @@ def closed_loop(
     return ClosedLoopResult(
         traj=traj,
         final_state=state,
-        x_final_wind=to_wind(state),
+        x_final_wind=to_wind(state) if gust_final is None else air_relative(state, gust_final),
         final_delta_rad=delta,
         final_ctrl_state=cstate,
         nonfinite=bad,
@@ -169,16 +234,35 @@ def evaluate(
     record_every: int = 1,
     criterion: RecoveryCriterion | None = None,
     envelope: Envelope | None = None,
+    disturbance: dist.DisturbanceParams | None = None,
+    disturbance_key: jax.Array | None = None,
+    max_delay_steps: int = 0,
+    model_params: AircraftParams | None = None,
 ) -> tuple[RunMetrics, Trajectory]:
     """Closed-loop run scored by ``compute_metrics`` (full-rate data), trajectory decimated.
 
     The metrics see the n_steps + 1 states (final state appended) and the n_steps deflections.
-    Jit with ``n_steps``/``record_every`` static and vmap over aircraft/states/references/keys.
+    Jit with ``n_steps``/``record_every``/``max_delay_steps`` static and vmap over
+    aircraft/states/references/keys. The disturbance arguments are ``closed_loop``'s.
 
     Returns:
         (RunMetrics, Trajectory with every ``record_every``-th sample).
     """
-    res = closed_loop(controller, params, x0, reference_rad, key, n_steps, dt_s, delta0_rad, 1)
+    res = closed_loop(
+        controller,
+        params,
+        x0,
+        reference_rad,
+        key,
+        n_steps,
+        dt_s,
+        delta0_rad,
+        1,
+        disturbance=disturbance,
+        disturbance_key=disturbance_key,
+        max_delay_steps=max_delay_steps,
+        model_params=model_params,
+    )
     m, _ = score(res, reference_rad, params, dt_s, criterion, envelope)
     traj = jax.tree.map(lambda a: a[::record_every], res.traj)
     return m, traj

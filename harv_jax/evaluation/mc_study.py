@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from harv_jax.control.registry import DEFAULT_ZETA
+from harv_jax.evaluation.disturbance_spec import DisturbanceSpec, describe_disturbances
 from harv_jax.evaluation.monte_carlo import MCRunOutput
 from harv_jax.numfmt import fmt_num
 from harv_jax.task.spec import DT_S, H0_FT
@@ -31,6 +32,7 @@ class MonteCarloStudy:
         x0_wind: [N, 10] the sampled initial wind states.
         t_record_s: [T_rec] times of the decimated histories, s.
         reference_rad: [3] alpha_d, beta_d, mu_d.
+        disturbances: what the runs met (all zero: none).
     """
 
     summary: dict[str, Any]
@@ -38,6 +40,7 @@ class MonteCarloStudy:
     x0_wind: np.ndarray
     t_record_s: np.ndarray
     reference_rad: np.ndarray
+    disturbances: DisturbanceSpec = DisturbanceSpec()
 
 
 def monte_carlo(
@@ -53,8 +56,14 @@ def monte_carlo(
     zeta: str = DEFAULT_ZETA,
     command: str = "",
     progress: Callable[[str], None] | None = None,
+    disturbances: DisturbanceSpec | None = None,
 ) -> MonteCarloStudy:
-    """Fly every controller (names of ``harv_jax.control.registry``) on ``runs`` sampled runs (no files)."""
+    """Fly every controller (names of ``harv_jax.control.registry``) on ``runs`` sampled runs (no files).
+
+    ``randomize``: the plant aircraft drawn per run, the controllers built on the nominal one (unless
+    ``disturbances.controller_knows_aircraft``); ``disturbances``: noise, delay, gust, model error and lag
+    (``harv_jax.evaluation.disturbance_spec``; None: none).
+    """
     import jax
     import jax.numpy as jnp
 
@@ -70,11 +79,17 @@ def monte_carlo(
     n_steps = int(round(duration_s / DT_S))
     n_steps -= n_steps % record_every
     reference = jnp.array([target_alpha_rad, 0.0, 0.0])
-    inputs = sample_mc_inputs(jax.random.key(seed), runs, harv(), randomize=randomize, h0_ft=H0_FT)
+    spec = disturbances or DisturbanceSpec()
+    if randomize and spec.model_error == 0:
+        spec = dataclasses.replace(spec, model_error=1.0)
+    inputs = sample_mc_inputs(jax.random.key(seed), runs, harv(), h0_ft=H0_FT, disturbances=spec)
     summary = mc_summary(
         controllers, policy, zeta, runs, target_alpha_rad, n_steps * DT_S, seed, randomize, DT_S, H0_FT,
         [str(d) for d in jax.local_devices()], command,
     )  # fmt: skip
+    summary["disturbances"] = spec.as_dict()
+    if spec.active:
+        say(f"[mc] disturbances: {describe_disturbances(spec)}")
     outs = {}
     for name, ctrl in ctrls.items():
         say(f"[mc] {name}: {runs} runs x {n_steps} steps ...")
@@ -93,7 +108,7 @@ def monte_carlo(
         say(f"[mc] {name} vs smc: {paired_line(vs)}")
     n_rec = next(iter(outs.values())).history.shape[1]
     t_rec = np.arange(n_rec) * record_every * DT_S
-    return MonteCarloStudy(summary, outs, np.asarray(inputs.x0_wind), t_rec, np.asarray(reference))
+    return MonteCarloStudy(summary, outs, np.asarray(inputs.x0_wind), t_rec, np.asarray(reference), spec)
 
 
 def paired_line(vs: dict[str, Any]) -> str:
@@ -107,8 +122,11 @@ def paired_line(vs: dict[str, Any]) -> str:
     )
 
 
-def write_runs_csv(path: Path, x0: np.ndarray, outs: dict[str, MCRunOutput]) -> None:
-    """One row per (controller, run): initial state, outcome, metrics."""
+def write_runs_csv(
+    path: Path, x0: np.ndarray, outs: dict[str, MCRunOutput], disturbances: DisturbanceSpec | None = None
+) -> None:
+    """One row per (controller, run): initial state, outcome, metrics; with disturbances on, their levels
+    (``noise_scale``, ``delay_ms``, ``gust_fps``, ``model_error``, ``actuator_lag_s``) as the last columns."""
     from harv_jax.dynamics import WIND_STATE_NAMES
     from harv_jax.task.criteria import OUTCOME_NAMES
 
@@ -117,6 +135,10 @@ def write_runs_csv(path: Path, x0: np.ndarray, outs: dict[str, MCRunOutput]) -> 
         "terminal_mu_err_deg", "altitude_loss_ft", "control_tv_rad", "chatter_index_rad2",
         "sat_position_fraction", "left_envelope",
     ]  # fmt: skip
+    extra: list[str] = []
+    if disturbances is not None and disturbances.active:
+        header += ["noise_scale", "delay_ms", "gust_fps", "model_error", "actuator_lag_s"]
+        extra = [f"{v:g}" for v in disturbances.levels.values()]
     with path.open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(header)
@@ -138,6 +160,7 @@ def write_runs_csv(path: Path, x0: np.ndarray, outs: dict[str, MCRunOutput]) -> 
                         f"{np.sum(m.chatter_index_rad2[i]):.4g}",
                         f"{np.mean(m.sat_position_fraction[i]):.4g}",
                         bool(m.left_envelope[i]),
+                        *extra,
                     ]
                 )
 
@@ -176,5 +199,5 @@ def write_monte_carlo(out_dir: Path, study: MonteCarloStudy, save_trajectories: 
     plot_terminal_errors(
         {n: np.degrees(o.terminal_error_rad) for n, o in outs.items()}, out_dir / "terminal_errors.png"
     )
-    write_runs_csv(out_dir / "runs.csv", study.x0_wind, outs)
+    write_runs_csv(out_dir / "runs.csv", study.x0_wind, outs, study.disturbances)
     write_json(out_dir / "summary.json", s)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from harv_jax.errors import UsageError
 from harv_jax.report.document import Doc, to_html, to_markdown
+from harv_jax.report.robustness_section import robustness_section
 from harv_jax.report.scan import MAX_DEPTH, REPORT_FILES, Section, provenance, run_kind, scan
 from harv_jax.report.sections import envelope_section, fly_section, mc_section
 from harv_jax.report.train_section import train_section
@@ -45,6 +46,8 @@ def build_document(run_dir: Path, sections: list[Section], report_cmd: str) -> D
             envelope_section(doc, sec.jsons["envelope.json"])
         if "metrics.json" in sec.jsons and "metrics" in sec.jsons["metrics.json"]:
             fly_section(doc, sec.jsons["metrics.json"])
+        if "robustness.json" in sec.jsons and "disturbances" in sec.jsons["robustness.json"]:
+            robustness_section(doc, sec.jsons["robustness.json"])
         for md in sec.mds:
             doc.h(3, md.name)
             doc.md(md.read_text())

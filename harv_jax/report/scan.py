@@ -108,6 +108,8 @@ def run_kind(sec: Section) -> str:
         return "Monte Carlo (harv-jax mc)"
     if "envelope.json" in sec.jsons:
         return "recovery envelope map (harv-jax envelope)"
+    if "robustness.json" in sec.jsons:
+        return "robustness margins (harv-jax robustness)"
     if any(p.name.startswith("compare_metrics") for p in sec.mds + sec.data):
         return "controller comparison (harv-jax compare)"
     if "metrics.json" in sec.jsons and "metrics" in sec.jsons["metrics.json"]:

@@ -65,6 +65,18 @@ def controller_table(controllers: dict[str, dict], rows: Sequence[Row]) -> tuple
     return header, out
 
 
+def _disturbances(block: Any) -> str:
+    """The summary's disturbances in one cell ("none" for an undisturbed run or an older summary)."""
+    if not isinstance(block, dict) or not block.get("active"):
+        return "none"
+    units = block.get("units", {})
+    parts = [f"{n} {block.get(n + '_level', '?'):g} {units.get(n, '')}".strip() for n in block["active"]]
+    if "model" in block["active"]:
+        knows = block.get("controller_knows_aircraft")
+        parts.append("controllers on the " + ("plant's aircraft" if knows else "nominal aircraft"))
+    return ", ".join(parts)
+
+
 def mc_section(doc: Doc, summary: dict) -> None:
     """Tables of a ``harv-jax mc`` summary.json."""
     ctrls = summary.get("controllers") or {}
@@ -77,6 +89,7 @@ def mc_section(doc: Doc, summary: dict) -> None:
         ("step [s]", fmt(summary.get("dt_s"))),
         ("seed", str(summary["seed"]) if summary.get("seed") is not None else "–"),
         ("randomized aircraft", fmt(summary.get("randomize"))),
+        ("disturbances", _disturbances(summary.get("disturbances"))),
         ("devices", ", ".join(summary.get("devices") or []) or "–"),
     ]
     for key, label in (("policy", "policy"), ("zeta_schedule", "ζ schedule")):

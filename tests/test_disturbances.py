@@ -1,0 +1,184 @@
+"""The disturbance model in the closed loop and the Monte Carlo: zero levels change nothing, common random
+numbers, the noise's statistics, the delay, the gust's air-relative scoring and model error."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from harv_jax.aircraft import harv
+from harv_jax.control.base import Controller
+from harv_jax.control.registry import ControllerOptions, build_controller
+from harv_jax.dynamics.disturbances import DEFAULT_NOISE_STD_MAX, DisturbanceParams
+from harv_jax.dynamics.state import from_wind, to_wind
+from harv_jax.errors import UsageError
+from harv_jax.evaluation.closed_loop import air_relative, closed_loop
+from harv_jax.evaluation.disturbance_spec import DisturbanceSpec, parse_disturbances
+from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, with_full_structure
+from harv_jax.evaluation.robustness import margin
+
+X0 = jnp.array([600.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 25_000.0])
+REF = jnp.array([0.349, 0.0, 0.0])
+
+
+def _probe(u_rad: float = 0.0, step_at: int | None = None) -> Controller:
+    """A controller that records what it sees (info["x_seen"]) and the mass of the aircraft it was built on;
+    commands ``u_rad`` on the elevator (from step ``step_at`` on, if given)."""
+
+    def init(params):
+        return {"mass": params.mass_slug, "k": jnp.zeros((), jnp.int32)}
+
+    def apply(state, x, ref, key):
+        on = jnp.asarray(True) if step_at is None else state["k"] >= step_at
+        u = jnp.array([1.0, 0.0, 0.0], x.dtype) * jnp.where(on, u_rad, 0.0)
+        new = {"mass": state["mass"], "k": state["k"] + 1}
+        return u, new, {"x_seen": x, "model_mass": state["mass"]}
+
+    return Controller(init, apply)
+
+
+def _levels(noise=0.0, delay=0, gust=0.0, tau=5.0) -> DisturbanceParams:
+    return DisturbanceParams(
+        noise_std=jnp.asarray(noise * DEFAULT_NOISE_STD_MAX, jnp.float32),
+        delay_steps=jnp.asarray(delay, jnp.int32),
+        gust_std_fps=jnp.asarray(gust, jnp.float32),
+        gust_tau_s=jnp.asarray(tau, jnp.float32),
+    )
+
+
+def test_spec_none_is_the_undisturbed_monte_carlo_exactly():
+    key = jax.random.key(3)
+    plain = sample_mc_inputs(key, 8, harv())
+    spec = sample_mc_inputs(key, 8, harv(), disturbances=DisturbanceSpec())
+    assert spec.disturbance is None and spec.model_params is None and spec.max_delay_steps == 0
+    np.testing.assert_array_equal(plain.x0_wind, spec.x0_wind)
+    np.testing.assert_array_equal(jax.random.key_data(plain.keys), jax.random.key_data(spec.keys))
+    for a, b in zip(jax.tree.leaves(plain.params), jax.tree.leaves(spec.params), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_zero_levels_fly_as_none():
+    """Every disturbance on at level zero (noise 0, delay 0, gust 0, the plant's own model): the same
+    outcomes and recovery times as the undisturbed loop."""
+    ctrl = build_controller("smc", ControllerOptions())
+    inputs = sample_mc_inputs(jax.random.key(5), 6, harv())
+    full = with_full_structure(inputs, max_delay_steps=3)
+    a, _ = run_mc(ctrl, inputs, REF, 1500, record_every=100)
+    b, _ = run_mc(ctrl, full, REF, 1500, record_every=100)
+    np.testing.assert_array_equal(a.metrics.outcome, b.metrics.outcome)
+    np.testing.assert_allclose(a.metrics.t_recover_s, b.metrics.t_recover_s, rtol=0, atol=1e-4)
+    np.testing.assert_allclose(a.history, b.history, rtol=1e-5, atol=1e-5)
+
+
+def _noise_seen(ctrl: Controller, key, n_steps=400, noise=1.0) -> np.ndarray:
+    res = closed_loop(
+        ctrl,
+        harv(),
+        X0,
+        REF,
+        jax.random.key(0),
+        n_steps,
+        disturbance=_levels(noise=noise),
+        disturbance_key=key,
+    )
+    return np.asarray(res.traj.info["x_seen"] - res.traj.x_wind)
+
+
+def test_every_controller_sees_the_same_noise_sequence():
+    key = jax.random.key(11)
+    n_a = _noise_seen(_probe(0.0), key)
+    n_b = _noise_seen(_probe(-0.2), key)  # another command: another flight, the same noise
+    np.testing.assert_allclose(n_a[:, :8], n_b[:, :8], rtol=0, atol=2e-3)  # V (ft/s) carries float32 rounding
+    np.testing.assert_allclose(n_a[:, 1:8], n_b[:, 1:8], rtol=0, atol=2e-6)
+    assert np.all(n_a[:, 8:] == 0)  # chi and h are not measured with noise
+    assert not np.allclose(_noise_seen(_probe(0.0), jax.random.key(12)), n_a)
+
+
+def test_noise_has_the_configured_mean_and_std():
+    noise = _noise_seen(_probe(0.0), jax.random.key(2), n_steps=20_000, noise=2.0)[:, :8]
+    std = 2.0 * DEFAULT_NOISE_STD_MAX
+    n = noise.shape[0]
+    assert np.all(np.abs(noise.mean(axis=0)) < 5 * std / np.sqrt(n))
+    np.testing.assert_allclose(noise.std(axis=0), std, rtol=0.03)
+
+
+@pytest.mark.parametrize("delay", [0, 1, 5])
+def test_a_step_command_reaches_the_plant_d_steps_later(delay):
+    k0 = 10
+    res = closed_loop(
+        _probe(-0.05, step_at=k0), harv(), X0, REF, jax.random.key(0), 40,
+        disturbance=_levels(delay=delay), disturbance_key=jax.random.key(1), max_delay_steps=8,
+    )  # fmt: skip
+    de = np.asarray(res.traj.delta_rad[:, 0])
+    moved = np.flatnonzero(de != 0.0)
+    assert moved[0] == k0 + delay  # delta_rad[k]: the deflection over the step after the command of step k
+
+
+def test_delay_is_clipped_to_the_fifo():
+    res = closed_loop(
+        _probe(-0.05, step_at=0), harv(), X0, REF, jax.random.key(0), 20,
+        disturbance=_levels(delay=50), disturbance_key=jax.random.key(1), max_delay_steps=4,
+    )  # fmt: skip
+    assert np.flatnonzero(np.asarray(res.traj.delta_rad[:, 0]) != 0.0)[0] == 4
+
+
+def test_gust_is_stationary_and_scored_air_relative():
+    body = from_wind(X0)
+    np.testing.assert_array_equal(np.asarray(air_relative(body, jnp.zeros(3))), np.asarray(to_wind(body)))
+    x = air_relative(body, jnp.array([0.0, 0.0, 30.0]))  # a 30 ft/s downward body-axis gust: alpha falls
+    assert float(x[1]) < float(X0[1]) - 0.04
+    res = closed_loop(
+        _probe(0.0), harv(), X0, REF, jax.random.key(0), 200,
+        disturbance=_levels(gust=10.0, tau=0.2), disturbance_key=jax.random.key(4),
+    )  # fmt: skip
+    seen = np.asarray(res.traj.info["x_seen"])
+    np.testing.assert_array_equal(
+        seen, np.asarray(res.traj.x_wind)
+    )  # no noise: the controller sees the scored state
+
+
+def test_model_error_builds_controllers_on_the_nominal_aircraft():
+    ctrl = _probe(0.0)
+    nominal_mass = float(harv().mass_slug)
+    for knows in (False, True):
+        spec = DisturbanceSpec(model_error=2.0, controller_knows_aircraft=knows)
+        inputs = sample_mc_inputs(jax.random.key(9), 6, harv(), disturbances=spec)
+        plant_mass = np.asarray(inputs.params.mass_slug)
+        assert np.ptp(plant_mass) > 0.05 * nominal_mass  # the plant is randomized (2x the ranges)
+        run = jax.tree.map(lambda a: a[0], inputs)
+        res = closed_loop(ctrl, run.params, X0, REF, jax.random.key(0), 3, model_params=run.model_params)
+        seen = float(res.traj.info["model_mass"][0])
+        assert seen == pytest.approx(plant_mass[0] if knows else nominal_mass)
+
+
+def test_randomize_equals_model_error_one():
+    a = sample_mc_inputs(jax.random.key(1), 5, harv(), randomize=True)
+    b = sample_mc_inputs(jax.random.key(1), 5, harv(), disturbances=DisturbanceSpec(model_error=1.0))
+    np.testing.assert_array_equal(a.params.aero_scale, b.params.aero_scale)
+    np.testing.assert_array_equal(a.model_params.mass_slug, float(harv().mass_slug))
+
+
+def test_parse_disturbances_levels_and_errors():
+    assert parse_disturbances("none").active == ()
+    d = parse_disturbances("default")
+    assert d.active == ("noise", "delay", "gust", "model", "lag") and d.delay_steps == 2
+    assert parse_disturbances("noise", {"noise": 3.0}).noise_scale == 3.0
+    assert parse_disturbances("none", randomize=True).model_error == 1.0
+    bad = [
+        ("wind", {}), ("noise,noise", {}), ("default,noise", {}), ("", {}),
+        ("noise", {"noise": -1.0}), ("noise", {"noise": float("nan")}), ("delay", {"delay": 5000.0}),
+        ("noise", {"gust": 5.0}),
+    ]  # fmt: skip
+    for names, levels in bad:
+        with pytest.raises(UsageError):
+            parse_disturbances(names, levels)
+    with pytest.raises(UsageError, match="controller-knows-aircraft"):
+        parse_disturbances("noise", controller_knows_aircraft=True)
+
+
+def test_margin():
+    assert margin([0, 50, 100, 150], [1.0, 0.995, 0.98, 1.0]) == 50
+    assert margin([0, 1], [0.5, 1.0]) is None
+    assert margin([0, 1, 2], [1.0, 1.0, 1.0]) == 2
