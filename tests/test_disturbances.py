@@ -182,3 +182,43 @@ def test_margin():
     assert margin([0, 50, 100, 150], [1.0, 0.995, 0.98, 1.0]) == 50
     assert margin([0, 1], [0.5, 1.0]) is None
     assert margin([0, 1, 2], [1.0, 1.0, 1.0]) == 2
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_measurement_filter_gain_equals_its_design(order):
+    """A sine through the wrapped controller's input: the measured steady-state gain at a few frequencies
+    equals the design's (1 at DC, 1/sqrt(2) at the cutoff, the Butterworth roll-off above)."""
+    from harv_jax.control.filters import butterworth_coefficients, frequency_gain, with_measurement_filter
+
+    cutoff_hz = 2.0
+    probe = Controller(lambda p: jnp.zeros(()), lambda s, x, r, k: (jnp.zeros(3), s, {"y": x[:8]}))
+    ctrl = with_measurement_filter(probe, cutoff_hz, order)
+    b, a = butterworth_coefficients(cutoff_hz, order)
+    assert frequency_gain(b, a, 0.0) == pytest.approx(1.0, abs=1e-12)
+    assert frequency_gain(b, a, cutoff_hz) == pytest.approx(2**-0.5, abs=1e-9)
+    t = jnp.arange(3000) * 0.01
+
+    def run(f_hz):
+        def step(state, tk):
+            x = jnp.zeros(10).at[:8].set(jnp.sin(2 * jnp.pi * f_hz * tk))
+            _, state, info = ctrl.apply(state, x, REF, None)
+            return state, info["y"]
+
+        _, y = jax.lax.scan(step, ctrl.init(harv()), t)
+        return np.asarray(y[1500:])
+
+    for f_hz in (0.25, 1.0, cutoff_hz, 8.0):
+        y = run(f_hz)
+        gain = (y.max(axis=0) - y.min(axis=0)) / 2
+        np.testing.assert_allclose(gain, frequency_gain(b, a, f_hz), rtol=0.01, atol=2e-3)
+    x_const = jnp.full((10,), 3.0)
+    _, _, info = ctrl.apply(ctrl.init(harv()), x_const, REF, None)
+    np.testing.assert_allclose(np.asarray(info["y"]), 3.0, rtol=1e-6)  # starts at the first measurement
+
+
+def test_filter_rejects_bad_designs():
+    from harv_jax.control.filters import butterworth_coefficients
+
+    for cutoff, order in ((0.0, 2), (50.0, 2), (float("nan"), 1), (2.0, 3)):
+        with pytest.raises(ValueError):
+            butterworth_coefficients(cutoff, order)
