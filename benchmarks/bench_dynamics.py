@@ -64,8 +64,8 @@ DT_S = 0.01
 BATCH_SIZES = tuple(4**k for k in range(11))  # 1 ... 1,048,576 (default max 65,536)
 DEFAULT_MAX_BATCH = 65536
 TARGET_RATIO = 1000.0  # the first dynamics issue's target
-TARGET_RATIO_ISSUE18 = 500.0  # issue 18 (speed): >= 500x the numpy loop on the project's CPU
-#: Reset bounds of the paper (MODEL.md), [V, alpha, beta, p, q, r, mu, gamma, chi, h].
+TARGET_RATIO_ISSUE18 = 500.0  # speed target: >= 500x the numpy loop on the project's CPU
+#: Reset bounds of the paper (docs/model.md), [V, alpha, beta, p, q, r, mu, gamma, chi, h].
 RESET_LO = np.array([100, -0.175, -0.262, -2.094, -1.047, -0.524, -np.pi, -1.047, -np.pi, 20000.0])
 RESET_HI = np.array([1500, 1.047, 0.262, 2.094, 1.047, 0.524, np.pi, 1.047, np.pi, 30000.0])
 
@@ -253,7 +253,7 @@ def main(argv: list[str] | None = None) -> dict:
     name = f"dynamics_{machine}_quick.json" if args.quick else f"dynamics_{machine}.json"
     path = write_json(args.out_dir, name, result)
     print(f"best: batch {best['batch']}, {best['aircraft_steps_per_s']:.3e} aircraft-steps/s = "
-          f"{best['ratio_vs_numpy']:.0f}x numpy (targets {TARGET_RATIO:.0f}x, issue 18 "
+          f"{best['ratio_vs_numpy']:.0f}x numpy (targets {TARGET_RATIO:.0f}x, speed target "
           f"{TARGET_RATIO_ISSUE18:.0f}x)")  # fmt: skip
     print(f"wrote {path}")
     print(markdown_table(result))

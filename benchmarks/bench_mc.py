@@ -6,7 +6,7 @@ Usage::
     python benchmarks/bench_mc.py                        # 1000 runs x 60 s, smc and hybrid, local devices
     python benchmarks/bench_mc.py --envelope             # + the 100 x 100 envelope map per controller
     python benchmarks/bench_mc.py --quick                # 64 runs x 5 s (+ 8 x 8 map): a sanity run
-    python benchmarks/bench_mc.py --reference            # + the pre-issue-18 implementation, same inputs
+    python benchmarks/bench_mc.py --reference            # + the reference implementation, same inputs
     python benchmarks/bench_mc.py --reference --envelope # before/after of both studies, one JSON
     python benchmarks/bench_mc.py --envelope --compare-chunk 250  # + chunks of 250 runs (the old default)
 
@@ -238,7 +238,7 @@ def _pairs(
 
 def before_after(rows: list[dict], env_rows: list[dict]) -> dict[str, dict[str, float]]:
     """Per controller and study (``mc``, ``envelope``): compile and run seconds of the reference (before
-    issue 18) and the current implementation, and run-time speed-up = reference / current."""
+    tests/speed_reference.py) and the current implementation, and run-time speed-up = reference / current."""
     return {
         key: {
             "compile_s_before": ref["compile_s"],
@@ -270,7 +270,7 @@ def chunk_comparison(rows: list[dict], env_rows: list[dict]) -> dict[str, dict[s
 
 @contextlib.contextmanager
 def _implementation(name: str) -> Iterator[None]:
-    """``current``: the package as it is; ``reference``: the pre-issue-18 SMC/aero/atmosphere swapped in."""
+    """``current``: the package as it is; ``reference``: the reference SMC/aero/atmosphere swapped in."""
     if name == "current":
         yield
         return
@@ -307,7 +307,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="64 runs x 5 s (+ 8 x 8 map): a sanity run")
     ap.add_argument(
         "--reference", action="store_true",
-        help="also time the implementation before issue 18 (tests/speed_reference.py), same inputs",
+        help="also time the reference implementation (tests/speed_reference.py), same inputs",
     )  # fmt: skip
     ap.add_argument("--machine", default=None)
     ap.add_argument("--note", default="", help="free text stored in the JSON (e.g. 'machine shared')")

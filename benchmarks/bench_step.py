@@ -1,4 +1,4 @@
-"""Cost of one closed-loop step: plant vs SMC vs hybrid, side by side, against the pre-issue-18 SMC.
+"""Cost of one closed-loop step: plant vs SMC vs hybrid, side by side, against the reference SMC.
 
 Usage::
 
@@ -14,7 +14,7 @@ logic and the policy ran one after another). The variants run interleaved, ``--r
 best time is used, so the ratios hold on a busy machine. ``--copies N`` builds the current steps N times and
 uses the median of each build's best time (on a shared virtual machine two executables of the same code
 differed by up to ~10%; each build's times are kept under ``us_per_step_each_copy``). With the test
-references importable (``tests/speed_reference.py``, the implementation before issue 18: one linearization
+references importable (``tests/speed_reference.py``, the reference implementation: one linearization
 with 7 tangents, a LAPACK SVD per aircraft, the previous aero/atmosphere/forces) the same steps are also
 built from them ("reference"). XLA's cost analysis of one step of one aircraft (FLOPs, transcendentals) and
 the compile times are recorded.
@@ -121,7 +121,7 @@ def build(
     out = {}
     variants = {"plant": (plant_step, 2, (body0, delta0, hold, params))}
     kinds = {name: (name, "continuous") for name in controllers}
-    if gated:  # issue 17's schedules and the policy alone; not in the pre-issue-18 reference
+    if gated:  # the gated/simplex schedules and the policy alone; not in the reference
         kinds["hybrid_gated"] = ("hybrid", "gated")
         kinds["hybrid_simplex"] = ("hybrid", "simplex")
         kinds["rl"] = ("rl", "continuous")
@@ -173,7 +173,9 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--copies", type=int, default=1, help="builds of the current steps (median of bests)")
     ap.add_argument("--policy", default=None, help="the hybrid's policy (default: the shipped policy)")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--no-reference", action="store_true", help="skip the pre-issue-18 reference steps")
+    ap.add_argument(
+        "--no-reference", action="store_true", help="skip the reference steps (tests/speed_reference.py)"
+    )
     ap.add_argument("--quick", action="store_true", help="50 steps, 5 repeats")
     ap.add_argument("--machine", default=None)
     ap.add_argument("--note", default="", help="free text stored in the JSON (e.g. 'machine shared')")

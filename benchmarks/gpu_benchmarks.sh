@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The GPU benchmark session: issue 18's checks on a lent GPU, from the repository root.
+# The GPU benchmark run: the speed targets' checks on a lent GPU, from the repository root.
 #   OUT    results folder (set by the device tool; default /tmp/harv_gpu_out)
 #   QUICK  1: each benchmark's --quick form (a dry run on any machine, a few minutes on 2 CPU cores)
 # Needs only what the GPU image has (jax, flax, optax, chex, typer, rich, matplotlib); no install. Each step

@@ -4,7 +4,7 @@ This is what a Gym-style environment does: one aircraft, numpy/math on scalars, 
 wind-axis state x = [V, alpha, beta, p, q, r, mu, gamma, chi, h] (ft/s, rad, rad/s, ft) with controls
 u = [de, da, dr] (rad) held over the step, and a rate- and position-limited actuator in front of it.
 
-The equations are the verified forms of ``../shared/MODEL.md`` (wind-axis translational equations,
+The equations are the verified forms of docs/model.md (wind-axis translational equations,
 full-inertia body-rate equations, 1976 atmosphere, thrust ~ rho^0.7). Only the data (aero table, mass
 properties) come from ``harv_jax.aircraft.data_harv``; no jax code is used. It is written to be a fair,
 reasonably fast numpy implementation (table row by one vectorized interpolation, scalar trig via
@@ -92,7 +92,7 @@ def table_row(alpha_rad: float, aero_scale: np.ndarray) -> np.ndarray:
 
 
 def derivatives(x: np.ndarray, u: np.ndarray, prm: NumpyParams) -> np.ndarray:
-    """Wind-axis state derivative [10] (MODEL.md verified forms).
+    """Wind-axis state derivative [10] (docs/model.md forms).
 
     Args:
         x: [10] state [V, alpha, beta, p, q, r, mu, gamma, chi, h] (ft/s, rad, rad/s, ft).

@@ -1,7 +1,7 @@
 """Lie derivatives of controlled outputs, by JAX autodiff of the SMC's controller model.
 
 The controller model is the flight model with the control-surface *force* terms dropped
-(``derivatives(..., control_forces=False)``, MODEL.md "The controller's model"): it is control
+(``derivatives(..., control_forces=False)``, docs/model.md "The controller's model"): it is control
 affine, x_dot = f(x) + g(x) u, with f(x) = F(x, 0) and g(x) = dF/du (exact: F is linear in u),
 and the deflections enter only the moment equations, so y = [alpha, beta, mu] has relative degree
 2 per channel (L_g y = 0). Everything below is forward-mode autodiff (``jax.linearize``/``jvp``,
@@ -138,7 +138,7 @@ def wind_roll_rate_radps(x: jnp.ndarray, params: AircraftParams) -> jnp.ndarray:
     """Wind-axis roll rate p_w, rad/s (x-component of the wind frame's inertial angular velocity).
 
     p_w = cos(beta) (p cos(alpha) + r sin(alpha)) + sin(beta) (q - alpha_dot), with alpha_dot of the
-    controller model; equal to MODEL.md's (p ca + r sa)/cb + tb q_w but free of 1/cos(beta). Unlike
+    controller model; equal to docs/model.md's (p ca + r sa)/cb + tb q_w but free of 1/cos(beta). Unlike
     mu_dot = p_w + tan(gamma) (q_w smu + r_w cmu) it stays defined at gamma = +-90 deg.
     """
     alpha, beta = alpha_rad(x), beta_rad(x)

@@ -9,7 +9,7 @@ reset bounds (``ResetParams``), the flight envelope (``task.criteria.Envelope``)
 and the spin-entry reset states. The paper's numbers come from ``harv_jax.task.spec``.
 
 Sources: paper Section IV-A (reward, weights, terminal reward) and its Tables (observation/action ranges,
-reset bounds); ``../shared/MODEL.md`` ("Envelope (terminations) and reset bounds").
+reset bounds); docs/model.md ("Envelope and reset bounds").
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from harv_jax.task.spec import (
 )
 from harv_jax.units import RAD_PER_DEG
 
-#: Placeholder spin-entry state (wind axes [10]): level trim at 400 ft/s, 25,000 ft (MODEL.md trim table,
+#: Placeholder spin-entry state (wind axes [10]): level trim at 400 ft/s, 25,000 ft (docs/model.md trim table,
 #: alpha = 11.1793 deg). Replaced by real spin-entry states from ``harv_jax.task.spin_bank`` by the caller.
 PLACEHOLDER_SPIN_STATE = np.array([400.0, 11.1793 * RAD_PER_DEG, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, H0_FT])
 #: Default half-widths of the uniform perturbation added to a spin-entry state, same order and units
@@ -220,8 +220,6 @@ class RandomizationParams:
     noise_std_max: jnp.ndarray
     delay_on: jnp.ndarray
     delay_max_steps: jnp.ndarray
-
-
 
 
 def default_randomization_params(enabled: bool = True, dtype=None) -> RandomizationParams:
