@@ -74,7 +74,11 @@ def zeta_option():
 
 def controllers_help() -> str:
     """``--controller`` help (fixed text; the error for an unknown name lists the registered ones)."""
-    return "Controllers, comma-separated: smc, rl, hybrid or another name in harv_jax.control.registry."
+    return (
+        "Controllers, comma-separated: smc, smc-brake, rl, hybrid or another name in "
+        "harv_jax.control.registry; NAME+lpHZ feeds NAME its measurements through a 2nd-order low-pass at HZ "
+        "(e.g. smc+lp2)."
+    )
 
 
 def command_line() -> str:
@@ -100,10 +104,10 @@ def check_fly_options(
     controller: str, switching: str, target_alpha: float, duration: float, spin_s: float
 ) -> None:
     """UsageError (one line naming the value and what is allowed) for a bad ``fly``/``compare`` option."""
-    from harv_jax.control.registry import controller_names
+    from harv_jax.control.registry import controller_names, split_filter
 
     names = controller_names()
-    if controller not in names:
+    if split_filter(controller)[0] not in names:
         raise UsageError(f"--controller {controller!r} is unknown; allowed: {', '.join(names)}")
     if switching not in SWITCHING:
         raise UsageError(f"--switching {switching!r} is unknown; allowed: {', '.join(SWITCHING)}")

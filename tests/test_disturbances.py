@@ -222,3 +222,22 @@ def test_filter_rejects_bad_designs():
     for cutoff, order in ((0.0, 2), (50.0, 2), (float("nan"), 1), (2.0, 3)):
         with pytest.raises(ValueError):
             butterworth_coefficients(cutoff, order)
+
+
+def test_filter_suffix_in_the_registry():
+    from harv_jax.control.registry import parse_controllers, split_filter, uses_option
+
+    assert split_filter("smc+lp2") == ("smc", 2.0) and split_filter("rl") == ("rl", None)
+    assert parse_controllers("smc+lp2,rl+lp1.5") == ["smc+lp2", "rl+lp1.5"]
+    assert uses_option(["rl+lp2"], "policy") and not uses_option(["smc+lp2"], "policy")
+    for bad in ("smc+lp", "smc+lpx", "smc+lp0", "smc+lp60", "smc+lpnan", "bogus+lp2"):
+        with pytest.raises(UsageError):
+            parse_controllers(bad)
+    # the filtered SMC from the plant's initial deflections: its state carries them to the wrapped SMC
+    ctrl = build_controller("smc+lp2", ControllerOptions())
+    delta0 = jnp.array([-0.1, 0.05, 0.02])
+    filtered = closed_loop(ctrl, harv(), X0, REF, jax.random.key(0), 1, delta0_rad=delta0)
+    plain = closed_loop(build_controller("smc"), harv(), X0, REF, jax.random.key(0), 1, delta0_rad=delta0)
+    u_f, u_p = filtered.final_ctrl_state.inner.u_prev_rad, plain.final_ctrl_state.u_prev_rad
+    np.testing.assert_allclose(np.asarray(u_f), np.asarray(u_p), atol=1e-5)  # first step: same input
+    assert ctrl.init(harv()).u_prev_rad.shape == (3,)

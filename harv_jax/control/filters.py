@@ -61,11 +61,14 @@ def phase_lag_rad(cutoff_hz: float, order: int, f_hz: float) -> float:
 
 @struct.dataclass
 class FilteredState:
-    """The wrapped controller's state and the filter's direct-form-II-transposed memory [order, 8]."""
+    """The wrapped controller's state, the filter's direct-form-II-transposed memory [order, 8], whether
+    the first measurement was seen, and ``u_prev_rad`` [3], handed to the wrapped state at the first step
+    (so ``closed_loop`` can start it at the plant's deflections as for any controller)."""
 
     inner: object
     z: jnp.ndarray
     started: jnp.ndarray
+    u_prev_rad: jnp.ndarray
 
 
 def with_measurement_filter(controller: Controller, cutoff_hz: float, order: int = 2) -> Controller:
@@ -75,9 +78,9 @@ def with_measurement_filter(controller: Controller, cutoff_hz: float, order: int
     def init(params):
         inner = controller.init(params)
         dtype = params.mass_slug.dtype
-        return FilteredState(
-            inner=inner, z=jnp.zeros((order, NUM_FILTERED), dtype), started=jnp.asarray(False)
-        )
+        u_prev = getattr(inner, "u_prev_rad", jnp.zeros((3,), dtype))
+        z0 = jnp.zeros((order, NUM_FILTERED), dtype)
+        return FilteredState(inner=inner, z=z0, started=jnp.asarray(False), u_prev_rad=u_prev)
 
     def apply(state, x_wind, reference_rad, key):
         dtype = x_wind.dtype
@@ -90,7 +93,12 @@ def with_measurement_filter(controller: Controller, cutoff_hz: float, order: int
         rows = [z[i + 1] + b[i + 1] * m - a[i + 1] * y if i + 1 < order else b[i + 1] * m - a[i + 1] * y
                 for i in range(order)]  # fmt: skip
         z_new = jnp.stack(rows)
-        u, inner, info = controller.apply(state.inner, x_wind.at[:NUM_FILTERED].set(y), reference_rad, key)
-        return u, FilteredState(inner=inner, z=z_new, started=jnp.asarray(True)), info
+        inner = state.inner
+        if hasattr(inner, "u_prev_rad"):
+            first = jnp.logical_not(state.started)
+            inner = inner.replace(u_prev_rad=jnp.where(first, state.u_prev_rad, inner.u_prev_rad))
+        u, inner, info = controller.apply(inner, x_wind.at[:NUM_FILTERED].set(y), reference_rad, key)
+        new = FilteredState(inner=inner, z=z_new, started=jnp.asarray(True), u_prev_rad=u.astype(dtype))
+        return u, new, info
 
     return Controller(init, apply)

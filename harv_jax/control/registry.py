@@ -6,6 +6,9 @@ line in :data:`CONTROLLERS` (or one :func:`register` call from outside the packa
 
     register("toy", lambda opts: make_toy(), options=(), help="constant deflection")
 
+Any name takes a measurement filter as a suffix: ``smc+lp2`` is the SMC fed its measured states through a
+second-order Butterworth low-pass at 2 Hz (``harv_jax.control.filters``); ``rl+lp1.5``, ``hybrid+lp3`` alike.
+
 A builder takes the :class:`ControllerOptions` of the command line and returns a
 ``Controller(init, apply)`` (``harv_jax.control.base``); ``options`` names the fields it reads, so the
 commands know whether a run needs a policy (``"policy"``) or a zeta schedule (``"zeta"``) and record them.
@@ -137,7 +140,7 @@ def register(
         raise ValueError(f"controller {name!r} is already registered")
     options = tuple(options)
     unknown = [o for o in options if o not in OPTION_NAMES]
-    if unknown or not name or "," in name:
+    if unknown or not name or "," in name or FILTER_SUFFIX in name:
         raise ValueError(
             f"controller {name!r}: bad name or unknown options {unknown}; allowed {OPTION_NAMES}"
         )
@@ -150,19 +153,54 @@ def controller_names() -> tuple[str, ...]:
 
 
 def _unknown(name: str) -> UsageError:
-    return UsageError(f"unknown controller {name!r}; allowed: {', '.join(CONTROLLERS)}")
+    return UsageError(
+        f"unknown controller {name!r}; allowed: {', '.join(CONTROLLERS)} (each may end in {FILTER_SUFFIX}HZ)"
+    )
+
+
+#: Suffix of a measurement filter: ``<name>+lp<cutoff Hz>``.
+FILTER_SUFFIX = "+lp"
+#: Order of the suffix's Butterworth low-pass.
+FILTER_ORDER = 2
+#: Cutoffs a suffix may name, Hz (exclusive upper bound: below the plant rate's Nyquist frequency).
+FILTER_CUTOFF_RANGE_HZ = (0.05, 40.0)
+
+
+def split_filter(name: str) -> tuple[str, float | None]:
+    """(registered name, cutoff Hz or None) of a controller name; UsageError for a bad suffix."""
+    if FILTER_SUFFIX not in name:
+        return name, None
+    base, _, text = name.partition(FILTER_SUFFIX)
+    lo, hi = FILTER_CUTOFF_RANGE_HZ
+    try:
+        cutoff_hz = float(text)
+    except ValueError:
+        cutoff_hz = float("nan")
+    if not (lo <= cutoff_hz <= hi):  # also false for nan
+        raise UsageError(
+            f"controller {name!r}: the filter suffix {FILTER_SUFFIX}{text} needs a cutoff in Hz from {lo:g} "
+            f"to {hi:g} (e.g. {base}{FILTER_SUFFIX}2)"
+        )
+    return base, cutoff_hz
 
 
 def build_controller(name: str, options: ControllerOptions | None = None) -> Controller:
     """The controller ``name`` built with ``options``; UsageError for an unknown name or bad option."""
-    if name not in CONTROLLERS:
+    base, cutoff_hz = split_filter(name)
+    if base not in CONTROLLERS:
         raise _unknown(name)
-    return CONTROLLERS[name].build(options or ControllerOptions())
+    ctrl = CONTROLLERS[base].build(options or ControllerOptions())
+    if cutoff_hz is None:
+        return ctrl
+    from harv_jax.control.filters import with_measurement_filter
+
+    return with_measurement_filter(ctrl, cutoff_hz, FILTER_ORDER)
 
 
 def uses_option(names: Iterable[str], option: str) -> bool:
     """Whether any of the controllers ``names`` reads ``option`` (e.g. ``"policy"``)."""
-    return any(option in CONTROLLERS[n].options for n in names if n in CONTROLLERS)
+    bases = [n.partition(FILTER_SUFFIX)[0] for n in names]
+    return any(option in CONTROLLERS[n].options for n in bases if n in CONTROLLERS)
 
 
 def parse_controllers(text: str) -> list[str]:
@@ -171,7 +209,7 @@ def parse_controllers(text: str) -> list[str]:
     if not names:
         raise UsageError(f"--controller {text!r} names no controller; allowed: {', '.join(CONTROLLERS)}")
     for c in names:
-        if c not in CONTROLLERS:
+        if split_filter(c)[0] not in CONTROLLERS:
             raise _unknown(c)
     if len(set(names)) != len(names):
         raise UsageError(f"--controller {text!r} names a controller twice")
@@ -185,7 +223,10 @@ def loop_mismatches(names: Iterable[str], options: ControllerOptions) -> list[st
     ``loop``; e.g. a policy trained with ``train --in-loop hybrid:gated`` flown as ``rl`` or with
     ``--zeta continuous``. A policy trained alone flown in a hybrid is the paper's design: no line.
     """
-    entries = {n: CONTROLLERS[n] for n in names if n in CONTROLLERS and CONTROLLERS[n].loop is not None}
+    bases = {n: n.partition(FILTER_SUFFIX)[0] for n in names}
+    entries = {
+        n: CONTROLLERS[b] for n, b in bases.items() if b in CONTROLLERS and CONTROLLERS[b].loop is not None
+    }
     if not entries:
         return []
     from harv_jax.policies import DEFAULT_POLICY_SPEC
