@@ -85,7 +85,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("harv_jax.cli_options",),
     ("harv_jax.report",),
     ("harv_jax.training",),
-    ("harv_jax.evaluation",),
+    ("harv_jax.evaluation", "harv_jax.optimal"),
     ("harv_jax.plots",),
     ("harv_jax.env", "harv_jax.control"),
     ("harv_jax.policy", "harv_jax.policies"),
