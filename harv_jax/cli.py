@@ -38,9 +38,16 @@ def _root(
 
 #: Sub-command modules under ``harv_jax.commands``, in help order.
 COMMAND_MODULES = (
-    "simulate", "fly", "train", "mc", "compare", "envelope", "robustness", "report", "quickstart",
-)  # fmt: skip
-COMMAND_MODULES += ("optimal",)
+    "simulate",
+    "fly",
+    "train",
+    "mc",
+    "compare",
+    "envelope",
+    "robustness",
+    "report",
+    "quickstart",
+)
 
 for _name in COMMAND_MODULES:
     importlib.import_module(f"harv_jax.commands.{_name}").register(app)

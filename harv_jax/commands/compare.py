@@ -11,7 +11,20 @@ from pathlib import Path
 
 import typer
 
-from harv_jax.cli_options import controllers_help, policy_option, real_number, whole_number, zeta_option
+from harv_jax.cli_options import (
+    actuator_lag_option,
+    controllers_help,
+    delay_ms_option,
+    disturbances_option,
+    gust_fps_option,
+    gust_tau_option,
+    model_error_option,
+    noise_scale_option,
+    policy_option,
+    real_number,
+    whole_number,
+    zeta_option,
+)
 from harv_jax.errors import UsageError
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
@@ -34,7 +47,16 @@ def register(app: typer.Typer) -> None:
         state: Path = typer.Option(
             None, help="Fixed-state scenario file (.json/.csv; default: a built-in upset)."
         ),
-        seed: int = typer.Option(0, parser=whole_number, help="Seed of the controller keys."),
+        seed: int = typer.Option(
+            0, parser=whole_number, help="Seed of the controller keys and of the disturbance draws."
+        ),
+        disturbances: str = disturbances_option(),
+        noise_scale: float | None = noise_scale_option(),
+        delay_ms: float | None = delay_ms_option(),
+        gust_fps: float | None = gust_fps_option(),
+        gust_tau_s: float | None = gust_tau_option(),
+        model_error: float | None = model_error_option(),
+        actuator_lag_s: float | None = actuator_lag_option(),
         out: Path = typer.Option(Path("runs/compare"), help="Output directory."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
     ) -> None:
@@ -46,6 +68,11 @@ def register(app: typer.Typer) -> None:
 
         names = parse_controllers(controller)
         check_seed(seed)
+        from harv_jax.cli_options import disturbance_spec_from_cli
+
+        spec = disturbance_spec_from_cli(
+            disturbances, noise_scale, delay_ms, gust_fps, gust_tau_s, model_error, actuator_lag_s
+        )
         for name in names:
             check_fly_options(name, "sat", target_alpha, duration, spin_s)
             build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
@@ -61,7 +88,9 @@ def register(app: typer.Typer) -> None:
 
         fixed_state = FIXED_STATE if fixed_state is None else fixed_state
         out_dir = prepare_out_dir(out, force)
-        comp = compare(names, policy, zeta, target_alpha, duration, spin_s, fixed_state, seed, typer.echo)
+        comp = compare(
+            names, policy, zeta, target_alpha, duration, spin_s, fixed_state, seed, typer.echo, spec
+        )
         write_comparison(out_dir, comp, command_line())
         typer.echo(
             f"wrote {out_dir}/compare_metrics.md, compare_metrics.csv, *_trajectories.png, compare.json"

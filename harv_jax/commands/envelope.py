@@ -17,7 +17,20 @@ from pathlib import Path
 
 import typer
 
-from harv_jax.cli_options import controllers_help, policy_option, real_number, whole_number, zeta_option
+from harv_jax.cli_options import (
+    actuator_lag_option,
+    controllers_help,
+    delay_ms_option,
+    disturbances_option,
+    gust_fps_option,
+    gust_tau_option,
+    model_error_option,
+    noise_scale_option,
+    policy_option,
+    real_number,
+    whole_number,
+    zeta_option,
+)
 from harv_jax.errors import UsageError
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S, H0_FT
 
@@ -135,11 +148,23 @@ def register(app: typer.Typer) -> None:
             help="Runs per compiled call (bounds memory). Default: 512 per CPU core, all runs on a GPU, "
             "within 1/8 of memory. Results depend on it at float rounding.",
         ),
+        disturbances: str = disturbances_option(),
+        noise_scale: float | None = noise_scale_option(),
+        delay_ms: float | None = delay_ms_option(),
+        gust_fps: float | None = gust_fps_option(),
+        gust_tau_s: float | None = gust_tau_option(),
+        model_error: float | None = model_error_option(),
+        actuator_lag_s: float | None = actuator_lag_option(),
         out: Path = typer.Option(Path("runs/envelope"), help="Output directory."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
     ) -> None:
         """Recovery envelope map: outcome and recovery time over an initial-state grid, per controller."""
-        from harv_jax.cli_options import check_mc_options, command_line, warn_loop_mismatch
+        from harv_jax.cli_options import (
+            check_mc_options,
+            command_line,
+            disturbance_spec_from_cli,
+            warn_loop_mismatch,
+        )
         from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
         from harv_jax.evaluation.envelope_study import envelope_study, write_envelope
         from harv_jax.guards import check_closed_loop_batch, check_seed
@@ -149,6 +174,9 @@ def register(app: typer.Typer) -> None:
         g = build_grid(grid, n, fixed)
         check_mc_options(g.n_runs, target_alpha, duration, chunk)
         check_seed(seed)
+        spec = disturbance_spec_from_cli(
+            disturbances, noise_scale, delay_ms, gust_fps, gust_tau_s, model_error, actuator_lag_s
+        )
         n_steps = round(duration / DT_S)
         check_closed_loop_batch(g.n_runs, n_steps, n_steps, chunk, len(names), runs_flag="--n x --n =")
         for name in names:  # fail fast, before creating the output directory
@@ -156,7 +184,7 @@ def register(app: typer.Typer) -> None:
         warn_loop_mismatch(names, policy, zeta)
         out_dir = prepare_out_dir(out, force)
         study = envelope_study(
-            names, policy, g, target_alpha, duration, seed, chunk, zeta, command_line(), typer.echo
+            names, policy, g, target_alpha, duration, seed, chunk, zeta, command_line(), typer.echo, spec
         )
         write_envelope(out_dir, study)
         typer.echo(

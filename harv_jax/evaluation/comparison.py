@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
 from harv_jax.evaluation.flight import FlightResult, fly
 from harv_jax.evaluation.paired import REFERENCE_CONTROLLER, paired_vs_smc, times_nr_at_run_s
 from harv_jax.evaluation.summary import COMPARE_COLUMNS, controllers_setting
@@ -128,8 +129,10 @@ def compare(
     fixed_state: dict[str, float],
     seed: int,
     progress: Callable[[str], None] | None = None,
+    disturbances: DisturbanceSpec | None = None,
 ) -> Comparison:
-    """Fly every controller on the spin and from ``fixed_state`` (a wind state by name); no files."""
+    """Fly every controller on the spin and from ``fixed_state`` (a wind state by name); no files.
+    ``disturbances``: after engagement, the same for every controller (``flight.fly``)."""
     say = progress or (lambda _msg: None)
     flights: dict[str, dict[str, FlightResult]] = {}
     rows: list[dict[str, Any]] = []
@@ -139,7 +142,9 @@ def compare(
         flights[scen] = {}
         for name in controllers:
             say(f"[compare] {scen}: {name} ...")
-            res = fly(arg, target_alpha_rad, duration_s, seed, "sat", spin_s, name, policy, zeta)
+            res = fly(
+                arg, target_alpha_rad, duration_s, seed, "sat", spin_s, name, policy, zeta, disturbances
+            )
             flights[scen][name] = res
             rows.append(row_of(scen, name, res))
             if res.certificate is not None:
@@ -154,6 +159,7 @@ def compare(
         "zeta_schedule": zeta, "h0_ft": h0_ft,
         "target_alpha_rad": target_alpha_rad, "duration_s": duration_s, "spin_s": spin_s, "seed": seed,
         "dt_s": DT_S, "fixed_state": fixed_state,
+        "disturbances": (disturbances or DisturbanceSpec()).as_dict(),
     }  # fmt: skip
     vs_smc = add_vs_smc(rows, duration_s)
     return Comparison(flights, rows, certificates, h0_ft, settings, vs_smc)

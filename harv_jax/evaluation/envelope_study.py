@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from harv_jax.control.registry import DEFAULT_ZETA
+from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
 from harv_jax.evaluation.envelope_map import EnvelopeGrid, EnvelopeMap
 from harv_jax.task.spec import DT_S
 
@@ -46,8 +47,10 @@ def envelope_study(
     zeta: str = DEFAULT_ZETA,
     command: str = "",
     progress: Callable[[str], None] | None = None,
+    disturbances: DisturbanceSpec | None = None,
 ) -> EnvelopeStudy:
-    """Fly every controller from every grid point (no files)."""
+    """Fly every controller from every grid point (no files); ``disturbances``: the draws of a Monte Carlo
+    with ``seed`` and as many runs (``monte_carlo.sample_mc_inputs``), the grid's initial states."""
     import jax
     import jax.numpy as jnp
 
@@ -62,10 +65,17 @@ def envelope_study(
     n_steps = int(round(duration_s / DT_S))
     reference = jnp.array([target_alpha_rad, 0.0, 0.0])
     inputs = envelope_inputs(jax.random.key(seed), grid, harv())
+    spec = disturbances or DisturbanceSpec()
+    if spec.active:
+        from harv_jax.evaluation.monte_carlo import sample_mc_inputs
+
+        drawn = sample_mc_inputs(jax.random.key(seed), grid.n_runs, harv(), disturbances=spec)
+        inputs = drawn.replace(x0_wind=inputs.x0_wind, keys=inputs.keys)
     doc = envelope_summary(
         controllers, policy, zeta, grid_description(grid), grid.n_runs, target_alpha_rad, n_steps * DT_S,
         DT_S, seed, [str(d) for d in jax.local_devices()], command,
     )  # fmt: skip
+    doc["disturbances"] = spec.as_dict()
     maps = {}
     for name, ctrl in ctrls.items():
         say(f"[envelope] {name}: {grid.n_y} x {grid.n_x} = {grid.n_runs} runs x {n_steps} steps ...")

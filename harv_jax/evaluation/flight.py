@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from harv_jax.control.registry import DEFAULT_ZETA, ControllerOptions
+from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
 from harv_jax.task.spec import DT_S
 
 #: One flight: XLA compile time dominates the run time, so skip the backend's slow optimizations
@@ -59,7 +60,7 @@ class FlightResult:
 
 
 @functools.lru_cache(maxsize=8)
-def _runner(controller_name: str, options: ControllerOptions, n_steps: int):
+def _runner(controller_name: str, options: ControllerOptions, n_steps: int, max_delay_steps: int = 0):
     """Jitted closed-loop evaluation (cached per process so repeated calls reuse one compile)."""
     import jax
 
@@ -69,8 +70,13 @@ def _runner(controller_name: str, options: ControllerOptions, n_steps: int):
     controller = build_controller(controller_name, options)
 
     @functools.partial(jax.jit, compiler_options=FAST_COMPILE)
-    def run(params, x0_body, delta0, reference, key):
-        return evaluate(controller, params, x0_body, reference, key, n_steps, DT_S, delta0)
+    def run(
+        params, x0_body, delta0, reference, key, model_params=None, disturbance=None, disturbance_key=None
+    ):
+        return evaluate(
+            controller, params, x0_body, reference, key, n_steps, DT_S, delta0, disturbance=disturbance,
+            disturbance_key=disturbance_key, max_delay_steps=max_delay_steps, model_params=model_params,
+        )  # fmt: skip
 
     return run
 
@@ -115,6 +121,7 @@ def fly(
     controller: str = "smc",
     policy: str | None = None,
     zeta: str = DEFAULT_ZETA,
+    disturbances: DisturbanceSpec | None = None,
 ) -> FlightResult:
     """Fly a registered controller from a scenario (no files).
 
@@ -126,6 +133,8 @@ def fly(
         switching, policy, zeta: the controller's options (``ControllerOptions``).
         spin_s: spin scenario: seconds held in the spin before engagement.
         controller: a name of ``harv_jax.control.registry.CONTROLLERS``.
+        disturbances: noise, delay, gust, model error and lag after engagement (``disturbance_spec``; the
+            draws of run 0 of a Monte Carlo with ``seed``; None: none).
     """
     import jax
     import jax.numpy as jnp
@@ -162,7 +171,19 @@ def fly(
     x0_dict = {n: float(v) for n, v in zip(WIND_STATE_NAMES, np.asarray(x0), strict=True)}
     reference = jnp.asarray([target_alpha_rad, 0.0, 0.0], jnp.float32)
     options = ControllerOptions(policy=policy, zeta=zeta, switching=switching)
-    m, traj = _runner(controller, options, n_steps)(params, body0, delta0, reference, key_ctrl)
+    spec = disturbances or DisturbanceSpec()
+    extra = {}
+    if spec.active:
+        from harv_jax.evaluation.monte_carlo import sample_mc_inputs
+
+        run0 = jax.tree.map(
+            lambda a: a[0], sample_mc_inputs(jax.random.key(seed), 1, params, disturbances=spec)
+        )
+        params = run0.params
+        extra = {"model_params": run0.model_params, "disturbance": run0.disturbance,
+                 "disturbance_key": run0.disturbance_keys}  # fmt: skip
+    runner = _runner(controller, options, n_steps, spec.delay_steps)
+    m, traj = runner(params, body0, delta0, reference, key_ctrl, **extra)
     n_pre = pre_x.shape[0]
     nan3 = np.full((n_pre, 3), np.nan)
     info = {k: np.asarray(v) for k, v in traj.info.items()}
