@@ -38,4 +38,7 @@ step step 150 python3 benchmarks/bench_step.py --batch "$(pick 64 16384)" --no-r
 # dynamics throughput up to 2^20 aircraft
 step dynamics 90 python3 benchmarks/bench_dynamics.py --max-batch "$(pick 256 1048576)" $(pick --quick "") \
   --out-dir "$RES"
+# harv-jax optimal on 256 Monte Carlo runs (the search's gradients through the closed loop; every compile
+# included; the CPU target is 15 minutes on 2 cores). Adds up to 5 minutes to the session.
+step optimal 300 python3 benchmarks/bench_optimal.py --runs 256 --seed 2027 $(pick --quick "") --out-dir "$RES"
 ls -la "$RES"
