@@ -20,6 +20,7 @@ batch size, weights baked in); :func:`load_exported` reads it back without the m
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -313,16 +314,23 @@ def load(path: str | Path, seed: int = 0) -> Policy:
         raise UsageError(f"policy {str(p)!r} does not exist")
     if p.suffix != ".msgpack" and seed != 0:
         raise UsageError(f"policy {str(p)!r}@{seed}: a .npz holds one learner; @SEED is for checkpoints")
-    if p.suffix == ".msgpack":
-        try:
-            return _load_checkpoint(p, seed)
-        except (KeyError, IndexError, TypeError) as e:
-            raise UsageError(f"checkpoint {str(p)!r} is incomplete ({type(e).__name__}: {e})") from None
-        except ValueError as e:
-            if isinstance(e, UsageError):
-                raise
-            raise UsageError(f"checkpoint {str(p)!r} is incomplete ({e})") from None
-    return _load_npz(p)
+    st = p.stat()
+    return _load_file(str(p), str(p.resolve()), seed, st.st_mtime_ns, st.st_size)
+
+
+@functools.lru_cache(maxsize=16)
+def _load_file(shown: str, path: str, seed: int, mtime_ns: int, size: int) -> Policy:
+    """Read a policy file once per process and file version (a command flying it twice reads it once)."""
+    p = Path(shown)
+    if p.suffix != ".msgpack":
+        return _load_npz(p)
+    try:
+        return _load_checkpoint(p, seed)
+    except UsageError:
+        raise
+    except (KeyError, IndexError, TypeError, ValueError) as e:
+        detail = str(e) if isinstance(e, ValueError) else f"{type(e).__name__}: {e}"
+        raise UsageError(f"checkpoint {shown!r} is incomplete ({detail})") from None
 
 
 from harv_jax.policies import DEFAULT_POLICY_SPEC, DEFAULT_SHIPPED, SHIPPED, SHIPPED_PREFIX  # noqa: E402,F401

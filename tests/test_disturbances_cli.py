@@ -48,3 +48,17 @@ def test_fly_and_envelope_take_disturbances(monkeypatch, capsys, tmp_path):
     assert code == 0, err
     env = json.loads((tmp_path / "env" / "envelope.json").read_text())
     assert env["disturbances"]["delay_steps"] == 5
+
+
+def test_a_command_reads_the_policy_file_once(monkeypatch, capsys, tmp_path):
+    """``mc`` with the policy flown alone and in the hybrid (plus the loop check) reads the file once."""
+    from harv_jax import policy
+
+    reads = []
+    real = policy._load_npz
+    monkeypatch.setattr(policy, "_load_npz", lambda p: reads.append(str(p)) or real(p))
+    policy._load_file.cache_clear()
+    args = ["--controller", "rl,hybrid", "--runs", "2", "--duration", "1", "--out", tmp_path / "mc"]
+    code, _, err = cli_run(monkeypatch, capsys, "mc", *args)
+    assert code == 0, err
+    assert len(reads) == 1, reads
