@@ -241,3 +241,15 @@ def test_filter_suffix_in_the_registry():
     u_f, u_p = filtered.final_ctrl_state.inner.u_prev_rad, plain.final_ctrl_state.u_prev_rad
     np.testing.assert_allclose(np.asarray(u_f), np.asarray(u_p), atol=1e-5)  # first step: same input
     assert ctrl.init(harv()).u_prev_rad.shape == (3,)
+
+
+def test_a_users_controller_flies_in_the_monte_carlo():
+    """``monte_carlo`` takes name -> Controller: a user's own controller beside a registered one."""
+    from harv_jax.evaluation.mc_study import monte_carlo
+
+    study = monte_carlo(
+        {"hold": _probe(0.0), "smc": build_controller("smc")}, None, 3, 0.349, 2.0, 1, False,
+        disturbances=DisturbanceSpec(delay_ms=30.0),
+    )  # fmt: skip
+    assert list(study.outputs) == ["hold", "smc"] and "vs_smc" in study.summary["controllers"]["hold"]
+    assert study.summary["disturbances"]["delay_steps"] == 3

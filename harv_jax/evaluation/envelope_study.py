@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from harv_jax.control.base import Controller
 from harv_jax.control.registry import DEFAULT_ZETA
 from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
 from harv_jax.evaluation.envelope_map import EnvelopeGrid, EnvelopeMap
@@ -37,7 +38,7 @@ class EnvelopeStudy:
 
 
 def envelope_study(
-    controllers: list[str],
+    controllers: list[str] | Mapping[str, Controller],
     policy: str | None,
     grid: EnvelopeGrid,
     target_alpha_rad: float,
@@ -61,7 +62,11 @@ def envelope_study(
 
     say = progress or (lambda _msg: None)
     options = ControllerOptions(policy=policy, zeta=zeta)
-    ctrls = {name: build_controller(name, options) for name in controllers}
+    if isinstance(controllers, Mapping):  # a user's own controllers, name -> Controller
+        ctrls = dict(controllers)
+    else:
+        ctrls = {name: build_controller(name, options) for name in controllers}
+    controllers = list(ctrls)
     n_steps = int(round(duration_s / DT_S))
     reference = jnp.array([target_alpha_rad, 0.0, 0.0])
     inputs = envelope_inputs(jax.random.key(seed), grid, harv())

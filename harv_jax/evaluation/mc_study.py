@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from harv_jax.control.base import Controller
 from harv_jax.control.registry import DEFAULT_ZETA
 from harv_jax.evaluation.disturbance_spec import DisturbanceSpec, describe_disturbances
 from harv_jax.evaluation.monte_carlo import MCRunOutput
@@ -44,7 +45,7 @@ class MonteCarloStudy:
 
 
 def monte_carlo(
-    controllers: list[str],
+    controllers: list[str] | Mapping[str, Controller],
     policy: str | None,
     runs: int,
     target_alpha_rad: float,
@@ -58,7 +59,10 @@ def monte_carlo(
     progress: Callable[[str], None] | None = None,
     disturbances: DisturbanceSpec | None = None,
 ) -> MonteCarloStudy:
-    """Fly every controller (names of ``harv_jax.control.registry``) on ``runs`` sampled runs (no files).
+    """Fly every controller on ``runs`` sampled runs (no files).
+
+    ``controllers``: names of ``harv_jax.control.registry`` (built with ``policy`` and ``zeta``), or
+    name -> ``Controller`` (a user's own controllers; ``policy`` and ``zeta`` are then only recorded).
 
     ``randomize``: the plant aircraft drawn per run, the controllers built on the nominal one (unless
     ``disturbances.controller_knows_aircraft``); ``disturbances``: noise, delay, gust, model error and lag
@@ -75,7 +79,11 @@ def monte_carlo(
 
     say = progress or (lambda _msg: None)
     options = ControllerOptions(policy=policy, zeta=zeta)
-    ctrls = {name: build_controller(name, options) for name in controllers}
+    if isinstance(controllers, Mapping):
+        ctrls = dict(controllers)
+    else:
+        ctrls = {name: build_controller(name, options) for name in controllers}
+    controllers = list(ctrls)
     n_steps = int(round(duration_s / DT_S))
     n_steps -= n_steps % record_every
     reference = jnp.array([target_alpha_rad, 0.0, 0.0])
