@@ -48,6 +48,7 @@ COMMAND_MODULES = (
     "report",
     "quickstart",
 )
+COMMAND_MODULES += ("optimal",)
 
 for _name in COMMAND_MODULES:
     importlib.import_module(f"harv_jax.commands.{_name}").register(app)
