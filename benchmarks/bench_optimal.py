@@ -32,7 +32,7 @@ from benchmarks.common import (  # noqa: E402
     write_json,
 )
 
-#: The issue's budget for 256 runs on the 2-core CPU, s.
+#: The time budget for 256 runs on the 2-core CPU, s.
 TARGET_S = 15 * 60
 
 
