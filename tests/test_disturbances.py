@@ -61,18 +61,18 @@ def test_spec_none_is_the_undisturbed_monte_carlo_exactly():
 
 def test_zero_levels_fly_as_none():
     """Every disturbance on at level zero (noise 0, delay 0, gust 0, the plant's own model): the same
-    outcomes and recovery times as the undisturbed loop."""
-    ctrl = build_controller("smc", ControllerOptions())
+    outcomes, recovery times and histories as the undisturbed loop (a constant command: cheap to compile)."""
+    ctrl = _probe(-0.03)
     inputs = sample_mc_inputs(jax.random.key(5), 6, harv())
     full = with_full_structure(inputs, max_delay_steps=3)
-    a, _ = run_mc(ctrl, inputs, REF, 1500, record_every=100)
-    b, _ = run_mc(ctrl, full, REF, 1500, record_every=100)
+    a, _ = run_mc(ctrl, inputs, REF, 400, record_every=100)
+    b, _ = run_mc(ctrl, full, REF, 400, record_every=100)
     np.testing.assert_array_equal(a.metrics.outcome, b.metrics.outcome)
     np.testing.assert_allclose(a.metrics.t_recover_s, b.metrics.t_recover_s, rtol=0, atol=1e-4)
     np.testing.assert_allclose(a.history, b.history, rtol=1e-5, atol=1e-5)
 
 
-def _noise_seen(ctrl: Controller, key, n_steps=400, noise=1.0) -> np.ndarray:
+def _noise_seen(ctrl: Controller, key, n_steps=200, noise=1.0) -> np.ndarray:
     res = closed_loop(
         ctrl,
         harv(),
@@ -243,13 +243,20 @@ def test_filter_suffix_in_the_registry():
     assert ctrl.init(harv()).u_prev_rad.shape == (3,)
 
 
-def test_a_users_controller_flies_in_the_monte_carlo():
-    """``monte_carlo`` takes name -> Controller: a user's own controller beside a registered one."""
-    from harv_jax.evaluation.mc_study import monte_carlo
+def test_a_users_controller_flies_in_the_monte_carlo(tmp_path):
+    """``monte_carlo`` takes name -> Controller: a user's own controller beside a registered one; runs.csv
+    gets the disturbance levels as its last columns."""
+    import csv
 
+    from harv_jax.evaluation.mc_study import monte_carlo, write_runs_csv
+
+    spec = DisturbanceSpec(noise_scale=1.0, delay_ms=30.0)
     study = monte_carlo(
-        {"hold": _probe(0.0), "smc": build_controller("smc")}, None, 3, 0.349, 2.0, 1, False,
-        disturbances=DisturbanceSpec(delay_ms=30.0),
+        {"hold": _probe(0.0), "smc": _probe(-0.03)}, None, 3, 0.349, 1.0, 1, False,
+        disturbances=spec,
     )  # fmt: skip
     assert list(study.outputs) == ["hold", "smc"] and "vs_smc" in study.summary["controllers"]["hold"]
     assert study.summary["disturbances"]["delay_steps"] == 3
+    write_runs_csv(tmp_path / "runs.csv", study.x0_wind, study.outputs, spec)
+    rows = list(csv.DictReader((tmp_path / "runs.csv").open()))
+    assert len(rows) == 6 and rows[0]["delay_ms"] == "30" and rows[0]["noise_scale"] == "1"
