@@ -9,9 +9,9 @@ One step (dt_s, controller at the plant rate):
 With disturbances (``disturbance``: ``harv_jax.dynamics.disturbances``, the training env's model) the
 controller sees x_k plus sensor noise, the plant flies the command ``delay_steps`` old, with the body-axis
 gust; the recorded and scored states are the true ones, relative to the air mass (``air_relative``: the
-angles the aircraft flies at; a 10 ft/s gust at 300 ft/s moves the inertial sideslip by ~2 deg, twice the
-criterion's tolerance, while the aerodynamic one stays put). ``model_params`` builds the controller on another
-aircraft than the plant's (model error: e.g. the nominal aircraft while the plant flies a randomized one).
+angles the aerodynamics see; the inertial ones differ from them by up to gust / V, ~2 deg for 10 ft/s at
+300 ft/s). ``model_params`` builds the controller on another aircraft than the plant's (model error: e.g.
+the nominal aircraft while the plant flies a randomized one).
 
 Everything is vmappable over aircraft (``params``), initial states, references and keys; the number
 of steps is static. A non-finite command is replaced by the current deflection; a non-finite state
