@@ -45,10 +45,10 @@ COMMAND_MODULES = (
     "compare",
     "envelope",
     "robustness",
+    "optimal",
     "report",
     "quickstart",
 )
-COMMAND_MODULES += ("optimal",)
 
 for _name in COMMAND_MODULES:
     importlib.import_module(f"harv_jax.commands.{_name}").register(app)
