@@ -6,12 +6,15 @@ resource guards (memory, seeds) are in ``harv_jax.guards``.
 
 from __future__ import annotations
 
+import functools
+import inspect
 import json
 import math
 import shlex
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import typer
 
@@ -238,49 +241,17 @@ def disturbances_option():
     return typer.Option("none", help=DISTURBANCES_HELP)
 
 
-def noise_scale_option():
-    """``--noise-scale`` (with ``noise``)."""
-    return typer.Option(
-        None,
-        parser=real_number,
-        help="Sensor-noise std, times the env's per-channel maximum (with noise; 1).",
-    )
-
-
-def delay_ms_option():
-    """``--delay-ms`` (with ``delay``)."""
-    return typer.Option(None, parser=real_number, help="Command delay, ms (with delay; default 20).")
-
-
-def gust_fps_option():
-    """``--gust-fps`` (with ``gust``)."""
-    return typer.Option(
-        None, parser=real_number, help="Gust std per body axis, ft/s (with gust; default 10)."
-    )
-
-
-def gust_tau_option():
-    """``--gust-tau-s`` (with ``gust``)."""
-    return typer.Option(
-        None, parser=real_number, help="Gust correlation time, s (with gust; default: per run U(1, 10) s)."
-    )
-
-
-def model_error_option():
-    """``--model-error`` (with ``model``)."""
-    return typer.Option(
-        None,
-        parser=real_number,
-        help="Plant aircraft drawn with this multiple of the randomization ranges, controllers built on the "
-        "nominal one (with model; default 1).",
-    )
-
-
-def actuator_lag_option():
-    """``--actuator-lag-s`` (with ``lag``)."""
-    return typer.Option(
-        None, parser=real_number, help="First-order actuator lag of the plant, s (with lag; default 0.03)."
-    )
+#: The level options every command with ``@disturbance_options`` takes: parameter name -> help. Each is
+#: a number, None (not given: the disturbance's default level) unless set.
+LEVEL_OPTION_HELP = {
+    "noise_scale": "Sensor-noise std, times the env's per-channel maximum (with noise; 1).",
+    "delay_ms": "Command delay, ms (with delay; default 20).",
+    "gust_fps": "Gust std per body axis, ft/s (with gust; default 10).",
+    "gust_tau_s": "Gust correlation time, s (with gust; default: per run U(1, 10) s).",
+    "model_error": "Plant aircraft drawn with this multiple of the randomization ranges, controllers built "
+    "on the nominal one (with model; default 1).",
+    "actuator_lag_s": "First-order actuator lag of the plant, s (with lag; default 0.03).",
+}
 
 
 def knows_aircraft_option():
@@ -290,6 +261,39 @@ def knows_aircraft_option():
         help="With a randomized aircraft, build the model-based controllers on the plant's own aircraft "
         "instead of the nominal one (no model error).",
     )
+
+
+def disturbance_options(command: Callable[..., Any]) -> Callable[..., Any]:
+    """Give a typer command ``--disturbances`` and the level options (one definition for every command).
+
+    The command declares a keyword ``disturbance_spec`` instead and receives the parsed ``DisturbanceSpec``
+    (``evaluation.disturbance_spec``); a bad value fails with the one-line UsageError before the command runs.
+    Parameters ``randomize`` and ``controller_knows_aircraft`` of the command, if it has them, take part in
+    the parsing (``--randomize`` turns ``model`` on).
+    """
+    sig = inspect.signature(command, eval_str=True)
+    kept = [p for p in sig.parameters.values() if p.name != "disturbance_spec"]
+    keyword = inspect.Parameter.KEYWORD_ONLY
+    added = [inspect.Parameter("disturbances", keyword, default=disturbances_option(), annotation=str)]
+    for name, text in LEVEL_OPTION_HELP.items():
+        option = typer.Option(None, parser=real_number, help=text)
+        added.append(inspect.Parameter(name, keyword, default=option, annotation=float | None))
+
+    @functools.wraps(command)
+    def wrapper(**kwargs: Any) -> Any:
+        names = kwargs.pop("disturbances")
+        levels = {name: kwargs.pop(name) for name in LEVEL_OPTION_HELP}
+        randomize = kwargs.get("randomize", False)
+        knows = kwargs.get("controller_knows_aircraft", False)
+        spec = disturbance_spec_from_cli(
+            names, **levels, randomize=randomize, controller_knows_aircraft=knows
+        )
+        return command(**kwargs, disturbance_spec=spec)
+
+    params = [p.replace(kind=keyword) for p in kept] + added
+    wrapper.__signature__ = sig.replace(parameters=params)  # type: ignore[attr-defined]
+    wrapper.__annotations__ = {p.name: p.annotation for p in params} | {"return": sig.return_annotation}
+    return wrapper
 
 
 def disturbance_spec_from_cli(

@@ -8,18 +8,13 @@ scenario and controller.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import typer
 
 from harv_jax.cli_options import (
-    actuator_lag_option,
     controllers_help,
-    delay_ms_option,
-    disturbances_option,
-    gust_fps_option,
-    gust_tau_option,
-    model_error_option,
-    noise_scale_option,
+    disturbance_options,
     policy_option,
     real_number,
     whole_number,
@@ -31,6 +26,7 @@ from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @disturbance_options
     def compare(
         controller: str = typer.Option("rl,smc,hybrid", help=controllers_help()),
         policy: str = policy_option(),
@@ -50,15 +46,9 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(
             0, parser=whole_number, help="Seed of the controller keys and of the disturbance draws."
         ),
-        disturbances: str = disturbances_option(),
-        noise_scale: float | None = noise_scale_option(),
-        delay_ms: float | None = delay_ms_option(),
-        gust_fps: float | None = gust_fps_option(),
-        gust_tau_s: float | None = gust_tau_option(),
-        model_error: float | None = model_error_option(),
-        actuator_lag_s: float | None = actuator_lag_option(),
         out: Path = typer.Option(Path("runs/compare"), help="Output directory."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
+        disturbance_spec: Any = None,
     ) -> None:
         """RL vs SMC vs hybrid on the spin and a fixed state: overlaid histories, metrics table (md, csv)."""
         from harv_jax.cli_options import check_fly_options, command_line, load_state_file, warn_loop_mismatch
@@ -68,11 +58,6 @@ def register(app: typer.Typer) -> None:
 
         names = parse_controllers(controller)
         check_seed(seed)
-        from harv_jax.cli_options import disturbance_spec_from_cli
-
-        spec = disturbance_spec_from_cli(
-            disturbances, noise_scale, delay_ms, gust_fps, gust_tau_s, model_error, actuator_lag_s
-        )
         for name in names:
             check_fly_options(name, "sat", target_alpha, duration, spin_s)
             build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
@@ -89,7 +74,16 @@ def register(app: typer.Typer) -> None:
         fixed_state = FIXED_STATE if fixed_state is None else fixed_state
         out_dir = prepare_out_dir(out, force)
         comp = compare(
-            names, policy, zeta, target_alpha, duration, spin_s, fixed_state, seed, typer.echo, spec
+            names,
+            policy,
+            zeta,
+            target_alpha,
+            duration,
+            spin_s,
+            fixed_state,
+            seed,
+            typer.echo,
+            disturbances=disturbance_spec,
         )
         write_comparison(out_dir, comp, command_line())
         typer.echo(

@@ -14,18 +14,13 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import typer
 
 from harv_jax.cli_options import (
-    actuator_lag_option,
     controllers_help,
-    delay_ms_option,
-    disturbances_option,
-    gust_fps_option,
-    gust_tau_option,
-    model_error_option,
-    noise_scale_option,
+    disturbance_options,
     policy_option,
     real_number,
     whole_number,
@@ -117,6 +112,7 @@ def build_grid(grid: str, n: int, fixed: str):
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @disturbance_options
     def envelope(
         controller: str = typer.Option("smc", help=controllers_help()),
         policy: str = policy_option(),
@@ -148,21 +144,14 @@ def register(app: typer.Typer) -> None:
             help="Runs per compiled call (bounds memory). Default: 512 per CPU core, all runs on a GPU, "
             "within 1/8 of memory. Results depend on it at float rounding.",
         ),
-        disturbances: str = disturbances_option(),
-        noise_scale: float | None = noise_scale_option(),
-        delay_ms: float | None = delay_ms_option(),
-        gust_fps: float | None = gust_fps_option(),
-        gust_tau_s: float | None = gust_tau_option(),
-        model_error: float | None = model_error_option(),
-        actuator_lag_s: float | None = actuator_lag_option(),
         out: Path = typer.Option(Path("runs/envelope"), help="Output directory."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
+        disturbance_spec: Any = None,
     ) -> None:
         """Recovery envelope map: outcome and recovery time over an initial-state grid, per controller."""
         from harv_jax.cli_options import (
             check_mc_options,
             command_line,
-            disturbance_spec_from_cli,
             warn_loop_mismatch,
         )
         from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
@@ -174,9 +163,6 @@ def register(app: typer.Typer) -> None:
         g = build_grid(grid, n, fixed)
         check_mc_options(g.n_runs, target_alpha, duration, chunk)
         check_seed(seed)
-        spec = disturbance_spec_from_cli(
-            disturbances, noise_scale, delay_ms, gust_fps, gust_tau_s, model_error, actuator_lag_s
-        )
         n_steps = round(duration / DT_S)
         check_closed_loop_batch(g.n_runs, n_steps, n_steps, chunk, len(names), runs_flag="--n x --n =")
         for name in names:  # fail fast, before creating the output directory
@@ -184,7 +170,17 @@ def register(app: typer.Typer) -> None:
         warn_loop_mismatch(names, policy, zeta)
         out_dir = prepare_out_dir(out, force)
         study = envelope_study(
-            names, policy, g, target_alpha, duration, seed, chunk, zeta, command_line(), typer.echo, spec
+            names,
+            policy,
+            g,
+            target_alpha,
+            duration,
+            seed,
+            chunk,
+            zeta,
+            command_line(),
+            typer.echo,
+            disturbances=disturbance_spec,
         )
         write_envelope(out_dir, study)
         typer.echo(

@@ -3,27 +3,17 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import typer
 
-from harv_jax.cli_options import (
-    actuator_lag_option,
-    delay_ms_option,
-    disturbances_option,
-    gust_fps_option,
-    gust_tau_option,
-    model_error_option,
-    noise_scale_option,
-    policy_option,
-    real_number,
-    whole_number,
-    zeta_option,
-)
+from harv_jax.cli_options import disturbance_options, policy_option, real_number, whole_number, zeta_option
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @disturbance_options
     def fly(
         controller: str = typer.Option(
             "smc", help="Controller: smc, rl (policy only), hybrid or another in harv_jax.control.registry."
@@ -53,13 +43,7 @@ def register(app: typer.Typer) -> None:
         spin_s: float = typer.Option(
             30.0, parser=real_number, help="Spin scenario: seconds held in the spin before engagement."
         ),
-        disturbances: str = disturbances_option(),
-        noise_scale: float | None = noise_scale_option(),
-        delay_ms: float | None = delay_ms_option(),
-        gust_fps: float | None = gust_fps_option(),
-        gust_tau_s: float | None = gust_tau_option(),
-        model_error: float | None = model_error_option(),
-        actuator_lag_s: float | None = actuator_lag_option(),
+        disturbance_spec: Any = None,
     ) -> None:
         """Fly a controller closed loop: trajectory.csv, trajectory.png, sliding.png, metrics.json (and
         hybrid.png for the hybrid)."""
@@ -71,11 +55,6 @@ def register(app: typer.Typer) -> None:
 
         check_fly_options(controller, switching, target_alpha, duration, spin_s)
         check_seed(seed)
-        from harv_jax.cli_options import disturbance_spec_from_cli
-
-        spec = disturbance_spec_from_cli(
-            disturbances, noise_scale, delay_ms, gust_fps, gust_tau_s, model_error, actuator_lag_s
-        )
         # validate the state file, the policy and zeta before creating the output directory
         state = scenario if scenario in SCENARIOS else load_state_file(Path(scenario))
         # the heavy imports (jax) only after the arguments are checked: bad input fails fast
@@ -87,12 +66,21 @@ def register(app: typer.Typer) -> None:
         warn_loop_mismatch([controller], policy, zeta)
         out_dir = prepare_out_dir(out, force)
         res = fly_scenario(
-            state, target_alpha, duration, seed, switching, spin_s, controller, policy, zeta, spec
+            state,
+            target_alpha,
+            duration,
+            seed,
+            switching,
+            spin_s,
+            controller,
+            policy,
+            zeta,
+            disturbances=disturbance_spec,
         )
         settings = flight_settings(
             controller, policy, zeta, switching, scenario, seed, duration, DT_S, target_alpha, spin_s
         )
-        settings["disturbances"] = spec.as_dict()
+        settings["disturbances"] = disturbance_spec.as_dict()
         write_flight(out_dir, res, settings)
         m = res.metrics
         t_rec = m["t_recover_s"]

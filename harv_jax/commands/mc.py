@@ -3,19 +3,14 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import typer
 
 from harv_jax.cli_options import (
-    actuator_lag_option,
     controllers_help,
-    delay_ms_option,
-    disturbances_option,
-    gust_fps_option,
-    gust_tau_option,
+    disturbance_options,
     knows_aircraft_option,
-    model_error_option,
-    noise_scale_option,
     policy_option,
     real_number,
     whole_number,
@@ -26,6 +21,7 @@ from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @disturbance_options
     def mc(
         controller: str = typer.Option("smc", help=controllers_help()),
         policy: str = policy_option(),
@@ -44,13 +40,6 @@ def register(app: typer.Typer) -> None:
             "aircraft (model error; the same as model in --disturbances).",
         ),
         controller_knows_aircraft: bool = knows_aircraft_option(),
-        disturbances: str = disturbances_option(),
-        noise_scale: float | None = noise_scale_option(),
-        delay_ms: float | None = delay_ms_option(),
-        gust_fps: float | None = gust_fps_option(),
-        gust_tau_s: float | None = gust_tau_option(),
-        model_error: float | None = model_error_option(),
-        actuator_lag_s: float | None = actuator_lag_option(),
         chunk: int | None = typer.Option(
             None,
             parser=whole_number,
@@ -62,12 +51,12 @@ def register(app: typer.Typer) -> None:
         save_trajectories: bool = typer.Option(
             False, help="Also write trajectories_<controller>.npz (alpha, beta, mu of every run every 0.1 s)."
         ),
+        disturbance_spec: Any = None,
     ) -> None:
         """Monte Carlo: same sampled aircraft/initial states for every controller; summary + figures."""
         from harv_jax.cli_options import (
             check_mc_options,
             command_line,
-            disturbance_spec_from_cli,
             warn_loop_mismatch,
         )
         from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
@@ -77,10 +66,6 @@ def register(app: typer.Typer) -> None:
         names = parse_controllers(controller)
         check_mc_options(runs, target_alpha, duration, chunk)
         check_seed(seed)
-        spec = disturbance_spec_from_cli(
-            disturbances, noise_scale, delay_ms, gust_fps, gust_tau_s, model_error, actuator_lag_s, randomize,
-            controller_knows_aircraft,
-        )  # fmt: skip
         check_closed_loop_batch(runs, round(duration / DT_S), 10, chunk, len(names))
         # the heavy imports (jax) only after the arguments are checked: bad input fails fast
         from harv_jax.evaluation.mc_study import monte_carlo, write_monte_carlo
@@ -91,7 +76,7 @@ def register(app: typer.Typer) -> None:
         out_dir = prepare_out_dir(out, force)
         study = monte_carlo(
             names, policy, runs, target_alpha, duration, seed, randomize, chunk, zeta=zeta,
-            command=command_line(), progress=typer.echo, disturbances=spec,
+            command=command_line(), progress=typer.echo, disturbances=disturbance_spec,
         )  # fmt: skip
         write_monte_carlo(out_dir, study, save_trajectories)
         typer.echo(f"wrote {out_dir}/summary.json, bands_*.png/.csv, terminal_errors.png, runs.csv")

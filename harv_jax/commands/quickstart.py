@@ -10,21 +10,11 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 import typer
 
-from harv_jax.cli_options import (
-    actuator_lag_option,
-    delay_ms_option,
-    disturbances_option,
-    gust_fps_option,
-    gust_tau_option,
-    model_error_option,
-    noise_scale_option,
-    policy_option,
-    whole_number,
-    zeta_option,
-)
+from harv_jax.cli_options import disturbance_options, policy_option, whole_number, zeta_option
 
 #: The controllers of the quickstart (names in harv_jax.control.registry).
 QUICKSTART_CONTROLLERS = ("smc", "smc-brake", "rl", "hybrid")
@@ -35,6 +25,7 @@ CHUNK: int | None = None  # runs per compiled call: guards.auto_chunk
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @disturbance_options
     def quickstart(
         out: Path = typer.Option(Path("runs/quickstart"), help="Output directory."),
         runs: int = typer.Option(1000, parser=whole_number, help="Monte Carlo runs."),
@@ -42,20 +33,13 @@ def register(app: typer.Typer) -> None:
         policy: str = policy_option(),
         zeta: str = zeta_option(),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
-        disturbances: str = disturbances_option(),
-        noise_scale: float | None = noise_scale_option(),
-        delay_ms: float | None = delay_ms_option(),
-        gust_fps: float | None = gust_fps_option(),
-        gust_tau_s: float | None = gust_tau_option(),
-        model_error: float | None = model_error_option(),
-        actuator_lag_s: float | None = actuator_lag_option(),
+        disturbance_spec: Any = None,
     ) -> None:
         """Spin comparison and a Monte Carlo of SMC, braking SMC, RL and hybrid with the shipped policy, plus
         a report."""
         from harv_jax.cli_options import (
             check_mc_options,
             command_line,
-            disturbance_spec_from_cli,
             warn_loop_mismatch,
         )
         from harv_jax.control.registry import ControllerOptions, build_controller
@@ -67,9 +51,6 @@ def register(app: typer.Typer) -> None:
         names = list(QUICKSTART_CONTROLLERS)
         check_mc_options(runs, ALPHA_TARGET_RAD, DURATION_S, CHUNK)
         check_seed(seed)
-        spec = disturbance_spec_from_cli(
-            disturbances, noise_scale, delay_ms, gust_fps, gust_tau_s, model_error, actuator_lag_s
-        )
         check_closed_loop_batch(runs, round(DURATION_S / DT_S), 10, CHUNK, len(names))
         # the heavy imports (jax) only after the arguments are checked: bad input fails fast
         from harv_jax.evaluation.comparison import FIXED_STATE, compare, write_comparison
@@ -84,7 +65,16 @@ def register(app: typer.Typer) -> None:
         typer.echo(f"[quickstart] 1/3 spin comparison: 30 s developed spin, then {', '.join(names)} recover")
         prepare_out_dir(out_dir / "compare")  # with the run marker: --force may replace it later
         comp = compare(
-            names, policy, zeta, ALPHA_TARGET_RAD, DURATION_S, SPIN_S, FIXED_STATE, seed, typer.echo, spec
+            names,
+            policy,
+            zeta,
+            ALPHA_TARGET_RAD,
+            DURATION_S,
+            SPIN_S,
+            FIXED_STATE,
+            seed,
+            typer.echo,
+            disturbances=disturbance_spec,
         )
         write_comparison(out_dir / "compare", comp, command_line())
         for r in comp.rows:
@@ -98,7 +88,7 @@ def register(app: typer.Typer) -> None:
         prepare_out_dir(out_dir / "mc")  # with the run marker: --force may replace it later
         study = monte_carlo(
             names, policy, runs, ALPHA_TARGET_RAD, DURATION_S, seed, False, CHUNK, zeta=zeta,
-            command=command_line(), progress=typer.echo, disturbances=spec,
+            command=command_line(), progress=typer.echo, disturbances=disturbance_spec
         )  # fmt: skip
         write_monte_carlo(out_dir / "mc", study)
         typer.echo("[quickstart] 3/3 report")
