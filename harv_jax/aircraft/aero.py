@@ -10,6 +10,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import jax.numpy as jnp
+import numpy as np
 
 from harv_jax.aircraft import data_harv as data
 from harv_jax.aircraft.params import AircraftParams
@@ -53,7 +54,10 @@ def segment(alpha_rad: jnp.ndarray, in_range: bool = False) -> tuple[jnp.ndarray
 
 
 def lookup(
-    alpha_rad: jnp.ndarray, aero_scale: jnp.ndarray | None = None, in_range: bool = False
+    alpha_rad: jnp.ndarray,
+    aero_scale: jnp.ndarray | None = None,
+    in_range: bool = False,
+    table_per_rad: np.ndarray | None = None,
 ) -> jnp.ndarray:
     """Interpolated table row (per-radian derivatives), shape [33] in ``AERO_COLUMNS`` order.
 
@@ -65,8 +69,10 @@ def lookup(
         aero_scale: optional [33] per-column multipliers.
         in_range: ``alpha_rad`` is known to lie in [-pi, pi] (an ``arctan2``): the wrap (a ``mod``) is
             skipped and -pi is taken as +pi, as the wrap maps it (same row up to the wrap's rounding).
+        table_per_rad: the [27, 33] table (``AeroTable.per_rad``, a constant); None: the HARV table.
     """
-    table = jnp.asarray(data.AERO_TABLE_PER_RAD, dtype=jnp.result_type(alpha_rad, float))
+    table_per_rad = data.AERO_TABLE_PER_RAD if table_per_rad is None else table_per_rad
+    table = jnp.asarray(table_per_rad, dtype=jnp.result_type(alpha_rad, float))
     idx, frac = segment(alpha_rad, in_range)
     idx = idx.astype(jnp.int32)
     row = table[idx] * (1.0 - frac) + table[idx + 1] * frac
@@ -92,12 +98,12 @@ def coefficients(
         pqr_radps: [3] body rates, rad/s.
         vt_fps: airspeed, ft/s (> 0; caller guards V -> 0).
         u_rad: [3] deflections [de, da, dr], rad.
-        params: aircraft parameters (geometry, aero_scale).
+        params: aircraft parameters (geometry, aero_table, aero_scale).
         control_forces: if False, drop the control-surface *force* terms (CL,de, CD,de, CY,d*):
             the SMC's controller model (relative degree 2). Moments always keep them.
         alpha_in_range: ``alpha_rad`` lies in [-pi, pi] (``lookup``'s ``in_range``).
     """
-    c = lookup(alpha_rad, params.aero_scale, alpha_in_range)
+    c = lookup(alpha_rad, params.aero_scale, alpha_in_range, params.aero_table.per_rad)
     p, q, r = pqr_radps[0], pqr_radps[1], pqr_radps[2]
     de, da, dr = u_rad[0], u_rad[1], u_rad[2]
     ph = p * params.b / (2.0 * vt_fps)

@@ -1,7 +1,8 @@
 """Aircraft parameters as a pytree argument (vmappable: one aircraft per batch row).
 
-The aerodynamic table itself is a fixed constant of the model (``data_harv``); per-aircraft
-aerodynamic uncertainty enters through ``aero_scale``, a multiplier per table column.
+The aerodynamic table is a static field (``aero_table``, an ``AeroTable``: a compile-time constant, the
+same for every batch row); per-run aerodynamic uncertainty enters through ``aero_scale``, a traced
+multiplier per table column.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from harv_jax.aircraft.aero_table import HARV_AERO_TABLE, AeroTable
 from harv_jax.aircraft.data_harv import AERO_COLUMNS, IITM_MASS_GEOMETRY
 from harv_jax.units import G_FPS2, RAD_PER_DEG
 
@@ -24,7 +26,7 @@ DEFAULT_THROTTLE = 0.2
 
 @struct.dataclass
 class AircraftParams:
-    """Per-aircraft parameters (all traced leaves; batch them for domain randomization).
+    """Per-aircraft parameters (traced leaves, batch them for domain randomization; ``aero_table`` static).
 
     Attributes:
         mass_slug: mass, slug.
@@ -37,6 +39,7 @@ class AircraftParams:
         u_min_rad, u_max_rad: [3] deflection limits for [de, da, dr], rad.
         u_rate_max_radps: [3] deflection rate limits, rad/s.
         act_tau_s: first-order actuator lag time constant, s; 0 disables the lag (default).
+        aero_table: the aerodynamic table (static: not a leaf; another table compiles anew).
     """
 
     mass_slug: jnp.ndarray
@@ -55,6 +58,7 @@ class AircraftParams:
     u_max_rad: jnp.ndarray
     u_rate_max_radps: jnp.ndarray
     act_tau_s: jnp.ndarray
+    aero_table: AeroTable = struct.field(pytree_node=False)
 
 
 def harv(throttle: float = DEFAULT_THROTTLE, dtype=None) -> AircraftParams:
@@ -92,4 +96,5 @@ def harv(throttle: float = DEFAULT_THROTTLE, dtype=None) -> AircraftParams:
         u_max_rad=f(U_MAX_RAD),
         u_rate_max_radps=f(U_RATE_MAX_RADPS),
         act_tau_s=f(0.0),
+        aero_table=HARV_AERO_TABLE,
     )
