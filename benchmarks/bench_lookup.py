@@ -52,17 +52,23 @@ from harv_jax.units import DEG_PER_RAD  # noqa: E402
 N_BREAKPOINTS = len(data.ALPHA_DEG_GRID)
 
 
-def _segment(alpha_rad: jnp.ndarray, in_range: bool) -> tuple[jnp.ndarray, ...]:
+def _segment(
+    alpha_rad: jnp.ndarray, in_range: bool, table_per_rad: np.ndarray | None = None
+) -> tuple[jnp.ndarray, ...]:
     """(table, float segment index, fraction in the segment), as ``aero.lookup`` computes them."""
-    table = jnp.asarray(data.AERO_TABLE_PER_RAD, dtype=jnp.result_type(alpha_rad, float))
+    table_per_rad = data.AERO_TABLE_PER_RAD if table_per_rad is None else table_per_rad
+    table = jnp.asarray(table_per_rad, dtype=jnp.result_type(alpha_rad, float))
     return (table, *aero.segment(alpha_rad, in_range))
 
 
 def lookup_tent_matmul(
-    alpha_rad: jnp.ndarray, aero_scale: jnp.ndarray | None = None, in_range: bool = False
+    alpha_rad: jnp.ndarray,
+    aero_scale: jnp.ndarray | None = None,
+    in_range: bool = False,
+    table_per_rad: np.ndarray | None = None,
 ) -> jnp.ndarray:
     """``aero.lookup`` as tent weights [27] times the table [27, 33] (no gather)."""
-    table, idx, frac = _segment(alpha_rad, in_range)
+    table, idx, frac = _segment(alpha_rad, in_range, table_per_rad)
     k = jnp.arange(N_BREAKPOINTS, dtype=table.dtype)
     weights = jnp.where(k == idx, 1.0 - frac, 0.0) + jnp.where(k == idx + 1.0, frac, 0.0)
     row = weights @ table
@@ -70,10 +76,13 @@ def lookup_tent_matmul(
 
 
 def lookup_segment_select(
-    alpha_rad: jnp.ndarray, aero_scale: jnp.ndarray | None = None, in_range: bool = False
+    alpha_rad: jnp.ndarray,
+    aero_scale: jnp.ndarray | None = None,
+    in_range: bool = False,
+    table_per_rad: np.ndarray | None = None,
 ) -> jnp.ndarray:
     """``aero.lookup`` with the segment's rows picked by a chain of selects (no gather)."""
-    table, idx, frac = _segment(alpha_rad, in_range)
+    table, idx, frac = _segment(alpha_rad, in_range, table_per_rad)
     lo, hi = table[0], table[1]
     for i in range(1, N_BREAKPOINTS - 1):
         lo, hi = jnp.where(idx >= i, table[i], lo), jnp.where(idx >= i, table[i + 1], hi)
@@ -82,19 +91,25 @@ def lookup_segment_select(
 
 
 def lookup_bound(
-    alpha_rad: jnp.ndarray, aero_scale: jnp.ndarray | None = None, in_range: bool = False
+    alpha_rad: jnp.ndarray,
+    aero_scale: jnp.ndarray | None = None,
+    in_range: bool = False,
+    table_per_rad: np.ndarray | None = None,
 ) -> jnp.ndarray:
     """NOT the model: one affine row in alpha, the cost floor of any lookup (outputs differ)."""
-    table, idx, frac = _segment(alpha_rad, in_range)
+    table, idx, frac = _segment(alpha_rad, in_range, table_per_rad)
     row = table[3] + (idx + frac) * table[4]
     return row if aero_scale is None else row * aero_scale
 
 
 def lookup_always_wrap(
-    alpha_rad: jnp.ndarray, aero_scale: jnp.ndarray | None = None, in_range: bool = False
+    alpha_rad: jnp.ndarray,
+    aero_scale: jnp.ndarray | None = None,
+    in_range: bool = False,
+    table_per_rad: np.ndarray | None = None,
 ) -> jnp.ndarray:
     """The gather with the wrap also where alpha is an arctan2 (the lookup before ``in_range``)."""
-    return _GATHER(alpha_rad, aero_scale, False)
+    return _GATHER(alpha_rad, aero_scale, False, table_per_rad)
 
 
 _GATHER = aero.lookup
