@@ -14,7 +14,7 @@ import dataclasses
 import json
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,6 +24,9 @@ from harv_jax.evaluation.paired import REFERENCE_CONTROLLER, paired_vs_smc, time
 from harv_jax.evaluation.summary import COMPARE_COLUMNS, controllers_setting
 from harv_jax.numfmt import fmt_num, write_json
 from harv_jax.task.spec import DT_S, H0_FT
+
+if TYPE_CHECKING:
+    from harv_jax.aircraft.params import AircraftParams
 
 #: Fixed upset state of the second scenario (wind axes; ft/s, rad, rad/s, ft): a nose-high (alpha 46 deg),
 #: rolling, yawing, banked upset inside the paper's reset bounds.
@@ -130,9 +133,14 @@ def compare(
     seed: int,
     progress: Callable[[str], None] | None = None,
     disturbances: DisturbanceSpec | None = None,
+    aircraft: str | AircraftParams | None = None,
 ) -> Comparison:
     """Fly every controller on the spin and from ``fixed_state`` (a wind state by name); no files.
-    ``disturbances``: after engagement, the same for every controller (``flight.fly``)."""
+    ``disturbances``: after engagement, the same for every controller (``flight.fly``); ``aircraft``: the
+    nominal aircraft (a registry name or ``AircraftParams``; None: the default), recorded by name."""
+    from harv_jax.aircraft.registry import resolve_aircraft
+
+    aircraft_name, nominal = resolve_aircraft(aircraft)
     say = progress or (lambda _msg: None)
     flights: dict[str, dict[str, FlightResult]] = {}
     rows: list[dict[str, Any]] = []
@@ -143,7 +151,17 @@ def compare(
         for name in controllers:
             say(f"[compare] {scen}: {name} ...")
             res = fly(
-                arg, target_alpha_rad, duration_s, seed, "sat", spin_s, name, policy, zeta, disturbances
+                arg,
+                target_alpha_rad,
+                duration_s,
+                seed,
+                "sat",
+                spin_s,
+                name,
+                policy,
+                zeta,
+                disturbances,
+                aircraft=nominal,
             )
             flights[scen][name] = res
             rows.append(row_of(scen, name, res))
@@ -159,7 +177,7 @@ def compare(
         "zeta_schedule": zeta, "h0_ft": h0_ft,
         "target_alpha_rad": target_alpha_rad, "duration_s": duration_s, "spin_s": spin_s, "seed": seed,
         "dt_s": DT_S, "fixed_state": fixed_state,
-        "disturbances": (disturbances or DisturbanceSpec()).as_dict(),
+        "disturbances": (disturbances or DisturbanceSpec()).as_dict(), "aircraft": aircraft_name,
     }  # fmt: skip
     vs_smc = add_vs_smc(rows, duration_s)
     return Comparison(flights, rows, certificates, h0_ft, settings, vs_smc)

@@ -11,7 +11,7 @@ import csv
 import dataclasses
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -20,6 +20,9 @@ from harv_jax.control.registry import DEFAULT_ZETA
 from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
 from harv_jax.evaluation.envelope_map import EnvelopeGrid, EnvelopeMap
 from harv_jax.task.spec import DT_S
+
+if TYPE_CHECKING:
+    from harv_jax.aircraft.params import AircraftParams
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,13 +52,15 @@ def envelope_study(
     command: str = "",
     progress: Callable[[str], None] | None = None,
     disturbances: DisturbanceSpec | None = None,
+    aircraft: str | AircraftParams | None = None,
 ) -> EnvelopeStudy:
     """Fly every controller from every grid point (no files); ``disturbances``: the draws of a Monte Carlo
-    with ``seed`` and as many runs (``monte_carlo.sample_mc_inputs``), the grid's initial states."""
+    with ``seed`` and as many runs (``monte_carlo.sample_mc_inputs``), the grid's initial states;
+    ``aircraft``: the nominal aircraft (a registry name or ``AircraftParams``; None: the default)."""
     import jax
     import jax.numpy as jnp
 
-    from harv_jax.aircraft import harv
+    from harv_jax.aircraft.registry import resolve_aircraft
     from harv_jax.control.registry import ControllerOptions, build_controller
     from harv_jax.evaluation.envelope_map import envelope_inputs, grid_description, run_envelope
     from harv_jax.evaluation.summary import RECOVERY_RATE, envelope_summary, summarize_envelope
@@ -69,18 +74,20 @@ def envelope_study(
     controllers = list(ctrls)
     n_steps = int(round(duration_s / DT_S))
     reference = jnp.array([target_alpha_rad, 0.0, 0.0])
-    inputs = envelope_inputs(jax.random.key(seed), grid, harv())
+    aircraft_name, nominal = resolve_aircraft(aircraft)
+    inputs = envelope_inputs(jax.random.key(seed), grid, nominal)
     spec = disturbances or DisturbanceSpec()
     if spec.active:
         from harv_jax.evaluation.monte_carlo import sample_mc_inputs
 
-        drawn = sample_mc_inputs(jax.random.key(seed), grid.n_runs, harv(), disturbances=spec)
+        drawn = sample_mc_inputs(jax.random.key(seed), grid.n_runs, nominal, disturbances=spec)
         inputs = drawn.replace(x0_wind=inputs.x0_wind, keys=inputs.keys)
     doc = envelope_summary(
         controllers, policy, zeta, grid_description(grid), grid.n_runs, target_alpha_rad, n_steps * DT_S,
         DT_S, seed, [str(d) for d in jax.local_devices()], command,
     )  # fmt: skip
     doc["disturbances"] = spec.as_dict()
+    doc["aircraft"] = aircraft_name
     maps = {}
     for name, ctrl in ctrls.items():
         say(f"[envelope] {name}: {grid.n_y} x {grid.n_x} = {grid.n_runs} runs x {n_steps} steps ...")

@@ -10,13 +10,16 @@ from __future__ import annotations
 import dataclasses
 import functools
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from harv_jax.control.registry import DEFAULT_ZETA, ControllerOptions
 from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
 from harv_jax.task.spec import DT_S
+
+if TYPE_CHECKING:
+    from harv_jax.aircraft.params import AircraftParams
 
 #: One flight: XLA compile time dominates the run time, so skip the backend's slow optimizations
 #: (measured: ~30% less compile CPU for a ~30% slower 6000-step run of ~1 s).
@@ -122,6 +125,7 @@ def fly(
     policy: str | None = None,
     zeta: str = DEFAULT_ZETA,
     disturbances: DisturbanceSpec | None = None,
+    aircraft: str | AircraftParams | None = None,
 ) -> FlightResult:
     """Fly a registered controller from a scenario (no files).
 
@@ -135,16 +139,18 @@ def fly(
         controller: a name of ``harv_jax.control.registry.CONTROLLERS``.
         disturbances: noise, delay, gust, model error and lag after engagement (``disturbance_spec``; the
             draws of run 0 of a Monte Carlo with ``seed``; None: none).
+        aircraft: the nominal aircraft, a name of ``harv_jax.aircraft.registry`` or ``AircraftParams``
+            (None: the registry's default).
     """
     import jax
     import jax.numpy as jnp
 
-    from harv_jax.aircraft import harv
+    from harv_jax.aircraft.registry import resolve_aircraft
     from harv_jax.dynamics import WIND_STATE_NAMES, from_wind
     from harv_jax.evaluation.summary import metrics_to_dict
     from harv_jax.task.scenarios import SPIN_CONTROLS_RAD, sample_table_states, spin_check, spin_entry_state
 
-    params = harv()
+    params = resolve_aircraft(aircraft)[1]
     key = jax.random.key(seed)
     key_state, key_ctrl = jax.random.split(key)
     del key

@@ -11,7 +11,7 @@ import csv
 import dataclasses
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -21,6 +21,9 @@ from harv_jax.evaluation.disturbance_spec import DisturbanceSpec, describe_distu
 from harv_jax.evaluation.monte_carlo import MCRunOutput
 from harv_jax.numfmt import fmt_num
 from harv_jax.task.spec import DT_S, H0_FT
+
+if TYPE_CHECKING:
+    from harv_jax.aircraft.params import AircraftParams
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,6 +61,7 @@ def monte_carlo(
     command: str = "",
     progress: Callable[[str], None] | None = None,
     disturbances: DisturbanceSpec | None = None,
+    aircraft: str | AircraftParams | None = None,
 ) -> MonteCarloStudy:
     """Fly every controller on ``runs`` sampled runs (no files).
 
@@ -66,12 +70,13 @@ def monte_carlo(
 
     ``randomize``: the plant aircraft drawn per run, the controllers built on the nominal one (unless
     ``disturbances.controller_knows_aircraft``); ``disturbances``: noise, delay, gust, model error and lag
-    (``harv_jax.evaluation.disturbance_spec``; None: none).
+    (``harv_jax.evaluation.disturbance_spec``; None: none). ``aircraft``: the nominal aircraft, a name of
+    ``harv_jax.aircraft.registry`` or ``AircraftParams`` (None: the registry's default); recorded by name.
     """
     import jax
     import jax.numpy as jnp
 
-    from harv_jax.aircraft import harv
+    from harv_jax.aircraft.registry import resolve_aircraft
     from harv_jax.control.registry import ControllerOptions, build_controller
     from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
     from harv_jax.evaluation.paired import paired_vs_smc
@@ -90,12 +95,14 @@ def monte_carlo(
     spec = disturbances or DisturbanceSpec()
     if randomize and spec.model_error == 0:
         spec = dataclasses.replace(spec, model_error=1.0)
-    inputs = sample_mc_inputs(jax.random.key(seed), runs, harv(), h0_ft=H0_FT, disturbances=spec)
+    aircraft_name, nominal = resolve_aircraft(aircraft)
+    inputs = sample_mc_inputs(jax.random.key(seed), runs, nominal, h0_ft=H0_FT, disturbances=spec)
     summary = mc_summary(
         controllers, policy, zeta, runs, target_alpha_rad, n_steps * DT_S, seed, randomize, DT_S, H0_FT,
         [str(d) for d in jax.local_devices()], command,
     )  # fmt: skip
     summary["disturbances"] = spec.as_dict()
+    summary["aircraft"] = aircraft_name
     if spec.active:
         say(f"[mc] disturbances: {describe_disturbances(spec)}")
     outs = {}

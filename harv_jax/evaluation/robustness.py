@@ -13,7 +13,7 @@ lowest level; the levels are the sweep's, so the margin is a lower bound resolve
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -26,6 +26,9 @@ from harv_jax.evaluation.disturbance_spec import (
     DisturbanceSpec,
 )
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
+
+if TYPE_CHECKING:
+    from harv_jax.aircraft.params import AircraftParams
 
 #: Default sweep: levels per disturbance (units of its level option).
 SWEEP_LEVELS: dict[str, tuple[float, ...]] = {
@@ -95,6 +98,7 @@ def robustness_sweep(
     duration_s: float = 60.0,
     chunk: int | None = None,
     progress: Callable[[str], None] | None = None,
+    aircraft: str | AircraftParams | None = None,
 ) -> dict[str, Any]:
     """Fly every controller at every level of every disturbance of ``levels`` (default ``SWEEP_LEVELS``).
 
@@ -107,6 +111,8 @@ def robustness_sweep(
         duration_s: run length, s.
         chunk: runs per compiled call (``run_mc``).
         progress: called with one line per level.
+        aircraft: the nominal aircraft, a name of ``harv_jax.aircraft.registry`` or ``AircraftParams``
+            (None: the registry's default); recorded by name.
 
     Returns:
         The robustness.json document: per disturbance its levels, per controller a row per level
@@ -116,7 +122,7 @@ def robustness_sweep(
     import jax
     import jax.numpy as jnp
 
-    from harv_jax.aircraft import harv
+    from harv_jax.aircraft.registry import resolve_aircraft
     from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, with_full_structure
     from harv_jax.evaluation.summary import summarize_controller
 
@@ -130,13 +136,13 @@ def robustness_sweep(
     n_steps -= n_steps % record_every
     run_s = n_steps * DT_S
     max_delay = max([DisturbanceSpec(delay_ms=v).delay_steps for v in levels.get("delay", (0.0,))] + [0])
-    nominal = harv()
+    aircraft_name, nominal = resolve_aircraft(aircraft)
     reference = jnp.array([target_alpha_rad, 0.0, 0.0])
     cache: dict = {}
     doc: dict[str, Any] = {
         "runs": runs, "seed": seed, "duration_s": run_s, "target_alpha_rad": target_alpha_rad,
         "margin_recovery": MARGIN_RECOVERY, "controllers": list(controllers), "disturbances": {},
-        "devices": [str(d) for d in jax.local_devices()],
+        "devices": [str(d) for d in jax.local_devices()], "aircraft": aircraft_name,
     }  # fmt: skip
     for name, lv in levels.items():
         rows: dict[str, list[dict[str, Any]]] = {c: [] for c in controllers}

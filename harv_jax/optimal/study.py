@@ -19,6 +19,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from harv_jax.aircraft.params import AircraftParams
+from harv_jax.aircraft.registry import resolve_aircraft
 from harv_jax.control.base import Controller
 from harv_jax.dynamics.state import TRACKED_INDEX, BodyState, from_wind, to_wind
 from harv_jax.evaluation.closed_loop import closed_loop, score
@@ -58,41 +60,48 @@ class Scenario:
     keys: Any
 
 
-def mc_scenario(seed: int, runs: int) -> Scenario:
-    """The standard Monte Carlo draw (``sample_mc_inputs``, nominal aircraft, as ``harv-jax mc``)."""
-    from harv_jax.aircraft import harv
-
-    inp = sample_mc_inputs(jax.random.key(seed), runs, harv())
+def mc_scenario(seed: int, runs: int, aircraft: str | AircraftParams | None = None) -> Scenario:
+    """The standard Monte Carlo draw (``sample_mc_inputs``, nominal aircraft, as ``harv-jax mc``);
+    ``aircraft``: a registry name or ``AircraftParams`` (None: the registry's default)."""
+    inp = sample_mc_inputs(jax.random.key(seed), runs, resolve_aircraft(aircraft)[1])
     body0 = jax.vmap(from_wind)(inp.x0_wind)
     return Scenario("mc", inp.x0_wind, body0, jnp.zeros((runs, 3), inp.x0_wind.dtype), inp.params, inp.keys)
 
 
-def single_scenario(name: str, body0: BodyState, delta0_rad: jnp.ndarray, seed: int) -> Scenario:
-    """One run from a body state and deflections at engagement (nominal aircraft)."""
-    from harv_jax.aircraft import harv
-
-    params = jax.tree.map(lambda a: jnp.asarray(a)[None], harv())
+def single_scenario(
+    name: str,
+    body0: BodyState,
+    delta0_rad: jnp.ndarray,
+    seed: int,
+    aircraft: str | AircraftParams | None = None,
+) -> Scenario:
+    """One run from a body state and deflections at engagement (nominal ``aircraft``: a registry name or
+    ``AircraftParams``; None: the registry's default)."""
+    params = jax.tree.map(lambda a: jnp.asarray(a)[None], resolve_aircraft(aircraft)[1])
     body = jax.tree.map(lambda a: jnp.asarray(a)[None], body0)
     key_ctrl = jax.random.split(jax.random.key(seed))[1]
     x0 = jax.vmap(to_wind)(body)
     return Scenario(name, x0, body, jnp.asarray(delta0_rad, x0.dtype)[None], params, key_ctrl[None])
 
 
-def spin_scenario(spin_s: float, seed: int) -> Scenario:
+def spin_scenario(spin_s: float, seed: int, aircraft: str | AircraftParams | None = None) -> Scenario:
     """The developed spin (``task.scenarios``: pro-spin controls for ``spin_s``), engaged at its end."""
-    from harv_jax.aircraft import harv
     from harv_jax.task.scenarios import developed_spin_state
 
-    body, delta = jax.jit(developed_spin_state, static_argnums=1)(harv(), spin_s)
-    return single_scenario("spin", body, delta, seed)
+    params = resolve_aircraft(aircraft)[1]
+    body, delta = jax.jit(developed_spin_state, static_argnums=1)(params, spin_s)
+    return single_scenario("spin", body, delta, seed, params)
 
 
-def state_scenario(state: dict[str, float], seed: int) -> Scenario:
-    """One run from a wind state given by name (``WIND_STATE_NAMES``), deflections 0."""
+def state_scenario(
+    state: dict[str, float], seed: int, aircraft: str | AircraftParams | None = None
+) -> Scenario:
+    """One run from a wind state given by name (``WIND_STATE_NAMES``), deflections 0 (``aircraft`` as in
+    :func:`single_scenario`)."""
     from harv_jax.dynamics import WIND_STATE_NAMES
 
     x0 = jnp.asarray([state[n] for n in WIND_STATE_NAMES], jnp.float32)
-    return single_scenario("file", from_wind(x0), jnp.zeros(3, jnp.float32), seed)
+    return single_scenario("file", from_wind(x0), jnp.zeros(3, jnp.float32), seed, aircraft)
 
 
 def run_output(
