@@ -21,8 +21,9 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from harv_jax.aircraft.params import DEFAULT_THROTTLE, AircraftParams, harv
+from harv_jax.aircraft.params import DEFAULT_THROTTLE, AircraftParams
 from harv_jax.aircraft.randomize import default_aircraft_randomization
+from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT, check_aircraft_name, get_aircraft
 from harv_jax.dynamics.disturbances import (
     DEFAULT_DELAY_MAX_STEPS,
     DEFAULT_GUST_STD_MAX_FPS,
@@ -62,6 +63,7 @@ class EnvConfig:
         domain_randomization: master switch. False traces none of the randomization code (nominal
             aircraft, no gust, no noise, no delay) whatever ``RandomizationParams`` says.
         throttle: fixed throttle of the nominal aircraft in [0, 1].
+        aircraft: name of the nominal aircraft (``harv_jax.aircraft.registry``; default ``"harv"``).
         h0_ft: default initial altitude, ft (copied into ``EnvParams.h0_ft``).
         h_floor_ft: default altitude floor, ft (copied into ``EnvParams.envelope.h_floor_ft``).
         discount: default PBRS discount Gamma (= the PPO discount; paper 0.99).
@@ -75,6 +77,7 @@ class EnvConfig:
     h0_ft: float = H0_FT
     h_floor_ft: float = H_FLOOR_FT
     discount: float = 0.99
+    aircraft: str = DEFAULT_AIRCRAFT
 
     def __post_init__(self) -> None:
         if not self.dt_s > 0:
@@ -85,6 +88,7 @@ class EnvConfig:
             raise ValueError(f"max_delay_steps={self.max_delay_steps!r} must be >= 0")
         if not 0.0 < self.discount <= 1.0:
             raise ValueError(f"discount={self.discount!r} must be in (0, 1]")
+        check_aircraft_name(self.aircraft)
 
 
 @struct.dataclass
@@ -317,8 +321,8 @@ def default_params(config: EnvConfig | None = None, dtype=None) -> EnvParams:
     """Default traced parameters: the paper's reward, reset bounds and envelope; documented ranges.
 
     Args:
-        config: static config whose ``throttle``, ``h0_ft``, ``h_floor_ft`` and ``discount`` seed the
-            traced values (default ``EnvConfig()``).
+        config: static config whose ``aircraft``, ``throttle``, ``h0_ft``, ``h_floor_ft`` and ``discount``
+            seed the traced values (default ``EnvConfig()``).
         dtype: float dtype (default: jax's default float).
 
     Returns:
@@ -333,7 +337,7 @@ def default_params(config: EnvConfig | None = None, dtype=None) -> EnvParams:
     spin = PLACEHOLDER_SPIN_STATE.copy()
     spin[9] = config.h0_ft
     params = EnvParams(
-        aircraft=harv(throttle=config.throttle, dtype=dtype),
+        aircraft=get_aircraft(config.aircraft, throttle=config.throttle, dtype=dtype),
         reward=paper_reward_params(config.discount, dtype),
         randomization=default_randomization_params(True, dtype),
         reset=paper_reset_params(dtype),
