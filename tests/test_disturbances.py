@@ -227,7 +227,8 @@ def test_filter_rejects_bad_designs():
 def test_filter_suffix_in_the_registry():
     from harv_jax.control.registry import parse_controllers, split_filter, uses_option
 
-    assert split_filter("smc+lp2") == ("smc", 2.0) and split_filter("rl") == ("rl", None)
+    assert split_filter("smc+lp2") == ("smc", ("+lp", 2.0)) and split_filter("rl") == ("rl", None)
+    assert split_filter("smc+obs0.5") == ("smc", ("+obs", 0.5))
     assert parse_controllers("smc+lp2,rl+lp1.5") == ["smc+lp2", "rl+lp1.5"]
     assert uses_option(["rl+lp2"], "policy") and not uses_option(["smc+lp2"], "policy")
     for bad in ("smc+lp", "smc+lpx", "smc+lp0", "smc+lp60", "smc+lpnan", "bogus+lp2"):

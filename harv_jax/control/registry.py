@@ -6,8 +6,10 @@ line in :data:`CONTROLLERS` (or one :func:`register` call from outside the packa
 
     register("toy", lambda opts: make_toy(), options=(), help="constant deflection")
 
-Any name takes a measurement filter as a suffix: ``smc+lp2`` is the SMC fed its measured states through a
-second-order Butterworth low-pass at 2 Hz (``harv_jax.control.filters``); ``rl+lp1.5``, ``hybrid+lp3`` alike.
+Any name takes a measurement path as a suffix: ``smc+lp2`` is the SMC fed its measured states through a
+second-order Butterworth low-pass at 2 Hz (``harv_jax.control.filters``); ``smc+obs0.5`` the SMC fed the
+estimate of a model-based observer of 0.5 Hz bandwidth (``harv_jax.control.observer``); ``rl+lp1.5``,
+``hybrid+obs1`` alike.
 
 A builder takes the :class:`ControllerOptions` of the command line and returns a
 ``Controller(init, apply)`` (``harv_jax.control.base``); ``options`` names the fields it reads, so the
@@ -18,7 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Iterable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 from harv_jax.errors import UsageError
 
@@ -140,7 +142,7 @@ def register(
         raise ValueError(f"controller {name!r} is already registered")
     options = tuple(options)
     unknown = [o for o in options if o not in OPTION_NAMES]
-    if unknown or not name or "," in name or FILTER_SUFFIX in name:
+    if unknown or not name or "," in name or "+" in name:
         raise ValueError(
             f"controller {name!r}: bad name or unknown options {unknown}; allowed {OPTION_NAMES}"
         )
@@ -154,52 +156,72 @@ def controller_names() -> tuple[str, ...]:
 
 def _unknown(name: str) -> UsageError:
     return UsageError(
-        f"unknown controller {name!r}; allowed: {', '.join(CONTROLLERS)} (each may end in {FILTER_SUFFIX}HZ)"
+        f"unknown controller {name!r}; allowed: {', '.join(CONTROLLERS)} (each may end in +lpHZ or +obsHZ)"
     )
 
 
 #: Suffix of a measurement filter: ``<name>+lp<cutoff Hz>``.
 FILTER_SUFFIX = "+lp"
-#: Order of the suffix's Butterworth low-pass.
+#: Suffix of the model-based observer: ``<name>+obs<bandwidth Hz>``.
+OBSERVER_SUFFIX = "+obs"
+#: Order of the filter suffix's Butterworth low-pass.
 FILTER_ORDER = 2
-#: Cutoffs a suffix may name, Hz (exclusive upper bound: below the plant rate's Nyquist frequency).
+#: Cutoffs / bandwidths a suffix may name, Hz (below the plant rate's Nyquist frequency).
 FILTER_CUTOFF_RANGE_HZ = (0.05, 40.0)
 
 
-def split_filter(name: str) -> tuple[str, float | None]:
-    """(registered name, cutoff Hz or None) of a controller name; UsageError for a bad suffix."""
-    if FILTER_SUFFIX not in name:
+class MeasurementPath(NamedTuple):
+    """What a controller name's suffix puts between the sensors and the controller."""
+
+    suffix: str  # FILTER_SUFFIX or OBSERVER_SUFFIX
+    bandwidth_hz: float
+
+
+def base_name(name: str) -> str:
+    """``name`` without its measurement-path suffix (not validated)."""
+    return name.partition("+")[0]
+
+
+def split_filter(name: str) -> tuple[str, MeasurementPath | None]:
+    """(registered name, measurement path or None) of a controller name; UsageError for a bad suffix."""
+    base, plus, rest = name.partition("+")
+    if not plus:
         return name, None
-    base, _, text = name.partition(FILTER_SUFFIX)
+    suffix = next((s for s in (OBSERVER_SUFFIX, FILTER_SUFFIX) if ("+" + rest).startswith(s)), None)
+    text = rest[len(suffix) - 1 :] if suffix else rest
     lo, hi = FILTER_CUTOFF_RANGE_HZ
     try:
-        cutoff_hz = float(text)
+        hz = float(text)
     except ValueError:
-        cutoff_hz = float("nan")
-    if not (lo <= cutoff_hz <= hi):  # also false for nan
+        hz = float("nan")
+    if suffix is None or not (lo <= hz <= hi):  # also false for nan
         raise UsageError(
-            f"controller {name!r}: the filter suffix {FILTER_SUFFIX}{text} needs a cutoff in Hz from {lo:g} "
-            f"to {hi:g} (e.g. {base}{FILTER_SUFFIX}2)"
+            f"controller {name!r}: the suffix +{rest} needs to be +lpHZ (low-pass) or +obsHZ (observer) with "
+            f"HZ from {lo:g} to {hi:g} (e.g. {base}{FILTER_SUFFIX}2, {base}{OBSERVER_SUFFIX}0.5)"
         )
-    return base, cutoff_hz
+    return base, MeasurementPath(suffix, hz)
 
 
 def build_controller(name: str, options: ControllerOptions | None = None) -> Controller:
     """The controller ``name`` built with ``options``; UsageError for an unknown name or bad option."""
-    base, cutoff_hz = split_filter(name)
+    base, path = split_filter(name)
     if base not in CONTROLLERS:
         raise _unknown(name)
     ctrl = CONTROLLERS[base].build(options or ControllerOptions())
-    if cutoff_hz is None:
+    if path is None:
         return ctrl
+    if path.suffix == OBSERVER_SUFFIX:
+        from harv_jax.control.observer import with_state_observer
+
+        return with_state_observer(ctrl, path.bandwidth_hz)
     from harv_jax.control.filters import with_measurement_filter
 
-    return with_measurement_filter(ctrl, cutoff_hz, FILTER_ORDER)
+    return with_measurement_filter(ctrl, path.bandwidth_hz, FILTER_ORDER)
 
 
 def uses_option(names: Iterable[str], option: str) -> bool:
     """Whether any of the controllers ``names`` reads ``option`` (e.g. ``"policy"``)."""
-    bases = [n.partition(FILTER_SUFFIX)[0] for n in names]
+    bases = [base_name(n) for n in names]
     return any(option in CONTROLLERS[n].options for n in bases if n in CONTROLLERS)
 
 
@@ -223,7 +245,7 @@ def loop_mismatches(names: Iterable[str], options: ControllerOptions) -> list[st
     ``loop``; e.g. a policy trained with ``train --in-loop hybrid:gated`` flown as ``rl`` or with
     ``--zeta continuous``. A policy trained alone flown in a hybrid is the paper's design: no line.
     """
-    bases = {n: n.partition(FILTER_SUFFIX)[0] for n in names}
+    bases = {n: base_name(n) for n in names}
     entries = {
         n: CONTROLLERS[b] for n, b in bases.items() if b in CONTROLLERS and CONTROLLERS[b].loop is not None
     }
