@@ -271,8 +271,6 @@ def disturbance_options(command: Callable[..., Any]) -> Callable[..., Any]:
     Parameters ``randomize`` and ``controller_knows_aircraft`` of the command, if it has them, take part in
     the parsing (``--randomize`` turns ``model`` on).
     """
-    sig = inspect.signature(command, eval_str=True)
-    kept = [p for p in sig.parameters.values() if p.name != "disturbance_spec"]
     keyword = inspect.Parameter.KEYWORD_ONLY
     added = [inspect.Parameter("disturbances", keyword, default=disturbances_option(), annotation=str)]
     for name, text in LEVEL_OPTION_HELP.items():
@@ -290,10 +288,58 @@ def disturbance_options(command: Callable[..., Any]) -> Callable[..., Any]:
         )
         return command(**kwargs, disturbance_spec=spec)
 
-    params = [p.replace(kind=keyword) for p in kept] + added
+    return _with_options(command, wrapper, "disturbance_spec", added)
+
+
+def _with_options(
+    command: Callable[..., Any], wrapper: Callable[..., Any], replaced: str, added: list[inspect.Parameter]
+) -> Callable[..., Any]:
+    """``wrapper`` with the signature typer reads: ``command``'s parameters but ``replaced`` (the keyword the
+    wrapper fills in), all keyword-only, then the ``added`` options."""
+    sig = inspect.signature(command, eval_str=True)
+    keyword = inspect.Parameter.KEYWORD_ONLY
+    kept = [p.replace(kind=keyword) for p in sig.parameters.values() if p.name != replaced]
+    params = kept + added
     wrapper.__signature__ = sig.replace(parameters=params)  # type: ignore[attr-defined]
     wrapper.__annotations__ = {p.name: p.annotation for p in params} | {"return": sig.return_annotation}
     return wrapper
+
+
+AIRCRAFT_HELP = (
+    "Nominal aircraft: harv (the F-18/HARV, default) or a name registered with "
+    "harv_jax.aircraft.register_aircraft; the controllers are built on it."
+)
+
+
+def check_aircraft(name: str | None) -> str | None:
+    """``name`` if it is None (not given) or a registered aircraft; UsageError naming ``--aircraft`` and the
+    allowed names otherwise."""
+    if name is None:
+        return None
+    from harv_jax.aircraft.registry import aircraft_names
+
+    if name not in aircraft_names():
+        raise UsageError(f"--aircraft {name!r} is unknown; allowed: {', '.join(aircraft_names())}")
+    return name
+
+
+def aircraft_option(command: Callable[..., Any]) -> Callable[..., Any]:
+    """Give a typer command ``--aircraft NAME`` (one definition, help text and check for every command).
+
+    The command declares a keyword ``aircraft_name`` instead and receives the checked name (a name of
+    ``harv_jax.aircraft.registry``), or None when the option is not given (the studies then fly the
+    registry's default); an unknown name fails with the one-line UsageError before the command runs.
+    """
+    keyword = inspect.Parameter.KEYWORD_ONLY
+    option = typer.Option(None, help=AIRCRAFT_HELP, show_default=False)
+    added = [inspect.Parameter("aircraft", keyword, default=option, annotation=str | None)]
+
+    @functools.wraps(command)
+    def wrapper(**kwargs: Any) -> Any:
+        name = check_aircraft(kwargs.pop("aircraft"))
+        return command(**kwargs, aircraft_name=name)
+
+    return _with_options(command, wrapper, "aircraft_name", added)
 
 
 def disturbance_spec_from_cli(

@@ -13,6 +13,7 @@ from typing import Any
 import typer
 
 from harv_jax.cli_options import (
+    aircraft_option,
     controllers_help,
     disturbance_options,
     policy_option,
@@ -26,6 +27,7 @@ from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @aircraft_option
     @disturbance_options
     def compare(
         controller: str = typer.Option("rl,smc,hybrid", help=controllers_help()),
@@ -49,6 +51,7 @@ def register(app: typer.Typer) -> None:
         out: Path = typer.Option(Path("runs/compare"), help="Output directory."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
         disturbance_spec: Any = None,
+        aircraft_name: str | None = None,
     ) -> None:
         """RL vs SMC vs hybrid on the spin and a fixed state: overlaid histories, metrics table (md, csv)."""
         from harv_jax.cli_options import check_fly_options, command_line, load_state_file, warn_loop_mismatch
@@ -84,6 +87,7 @@ def register(app: typer.Typer) -> None:
             seed,
             typer.echo,
             disturbances=disturbance_spec,
+            aircraft=aircraft_name,
         )
         write_comparison(out_dir, comp, command_line())
         typer.echo(

@@ -19,6 +19,7 @@ from typing import Any
 import typer
 
 from harv_jax.cli_options import (
+    aircraft_option,
     controllers_help,
     disturbance_options,
     policy_option,
@@ -112,6 +113,7 @@ def build_grid(grid: str, n: int, fixed: str):
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @aircraft_option
     @disturbance_options
     def envelope(
         controller: str = typer.Option("smc", help=controllers_help()),
@@ -147,6 +149,7 @@ def register(app: typer.Typer) -> None:
         out: Path = typer.Option(Path("runs/envelope"), help="Output directory."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
         disturbance_spec: Any = None,
+        aircraft_name: str | None = None,
     ) -> None:
         """Recovery envelope map: outcome and recovery time over an initial-state grid, per controller."""
         from harv_jax.cli_options import (
@@ -181,6 +184,7 @@ def register(app: typer.Typer) -> None:
             command_line(),
             typer.echo,
             disturbances=disturbance_spec,
+            aircraft=aircraft_name,
         )
         write_envelope(out_dir, study)
         typer.echo(

@@ -7,12 +7,20 @@ from typing import Any
 
 import typer
 
-from harv_jax.cli_options import disturbance_options, policy_option, real_number, whole_number, zeta_option
+from harv_jax.cli_options import (
+    aircraft_option,
+    disturbance_options,
+    policy_option,
+    real_number,
+    whole_number,
+    zeta_option,
+)
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @aircraft_option
     @disturbance_options
     def fly(
         controller: str = typer.Option(
@@ -44,6 +52,7 @@ def register(app: typer.Typer) -> None:
             30.0, parser=real_number, help="Spin scenario: seconds held in the spin before engagement."
         ),
         disturbance_spec: Any = None,
+        aircraft_name: str | None = None,
     ) -> None:
         """Fly a controller closed loop: trajectory.csv, trajectory.png, sliding.png, metrics.json (and
         hybrid.png for the hybrid)."""
@@ -58,6 +67,7 @@ def register(app: typer.Typer) -> None:
         # validate the state file, the policy and zeta before creating the output directory
         state = scenario if scenario in SCENARIOS else load_state_file(Path(scenario))
         # the heavy imports (jax) only after the arguments are checked: bad input fails fast
+        from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT
         from harv_jax.evaluation.flight import fly as fly_scenario
         from harv_jax.evaluation.flight import write_flight
         from harv_jax.evaluation.summary import flight_settings
@@ -76,11 +86,13 @@ def register(app: typer.Typer) -> None:
             policy,
             zeta,
             disturbances=disturbance_spec,
+            aircraft=aircraft_name,
         )
         settings = flight_settings(
             controller, policy, zeta, switching, scenario, seed, duration, DT_S, target_alpha, spin_s
         )
         settings["disturbances"] = disturbance_spec.as_dict()
+        settings["aircraft"] = aircraft_name or DEFAULT_AIRCRAFT
         write_flight(out_dir, res, settings)
         m = res.metrics
         t_rec = m["t_recover_s"]

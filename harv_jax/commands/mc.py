@@ -8,6 +8,7 @@ from typing import Any
 import typer
 
 from harv_jax.cli_options import (
+    aircraft_option,
     controllers_help,
     disturbance_options,
     knows_aircraft_option,
@@ -21,6 +22,7 @@ from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @aircraft_option
     @disturbance_options
     def mc(
         controller: str = typer.Option("smc", help=controllers_help()),
@@ -52,6 +54,7 @@ def register(app: typer.Typer) -> None:
             False, help="Also write trajectories_<controller>.npz (alpha, beta, mu of every run every 0.1 s)."
         ),
         disturbance_spec: Any = None,
+        aircraft_name: str | None = None,
     ) -> None:
         """Monte Carlo: same sampled aircraft/initial states for every controller; summary + figures."""
         from harv_jax.cli_options import (
@@ -77,6 +80,7 @@ def register(app: typer.Typer) -> None:
         study = monte_carlo(
             names, policy, runs, target_alpha, duration, seed, randomize, chunk, zeta=zeta,
             command=command_line(), progress=typer.echo, disturbances=disturbance_spec,
+            aircraft=aircraft_name,
         )  # fmt: skip
         write_monte_carlo(out_dir, study, save_trajectories)
         typer.echo(f"wrote {out_dir}/summary.json, bands_*.png/.csv, terminal_errors.png, runs.csv")

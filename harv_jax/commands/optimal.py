@@ -8,7 +8,7 @@ from pathlib import Path
 
 import typer
 
-from harv_jax.cli_options import real_number, whole_number
+from harv_jax.cli_options import aircraft_option, real_number, whole_number
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 #: The search's run length (the Monte Carlo's) and its surrogate's hold window, s (``optimal.search``
@@ -19,6 +19,7 @@ SURROGATE_HOLD_S = 5.0
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @aircraft_option
     def optimal(
         runs: int = typer.Option(256, parser=whole_number, help="Monte Carlo runs (scenario random)."),
         seed: int = typer.Option(
@@ -43,6 +44,7 @@ def register(app: typer.Typer) -> None:
         out: Path = typer.Option(Path("runs/optimal"), help="Output directory."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
         save_demos: Path = typer.Option(None, help="Also write the optimized trajectories as demos (.npz)."),
+        aircraft_name: str | None = None,
     ) -> None:
         """Per run a recovery near the fastest the aircraft allows, against smc, smc-brake, rl, hybrid."""
         from harv_jax.cli_options import SCENARIOS, check_mc_options, command_line, load_state_file
@@ -80,6 +82,7 @@ def register(app: typer.Typer) -> None:
                 raise UsageError(str(e)) from None
         check_out_dir(out, force)
         # the heavy imports (jax) only after the arguments are checked: bad input fails fast
+        from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT
         from harv_jax.optimal.outputs import build_summary, write_demos, write_optimal
         from harv_jax.optimal.search import SearchConfig, rounds_for
         from harv_jax.optimal.study import mc_scenario, optimal_study, spin_scenario, state_scenario
@@ -92,13 +95,14 @@ def register(app: typer.Typer) -> None:
         )  # fmt: skip
         out_dir = prepare_out_dir(out, force)
         if scenario == "random":
-            sc = mc_scenario(seed, runs)
+            sc = mc_scenario(seed, runs, aircraft_name)
         elif scenario == "spin":
-            sc = spin_scenario(spin_s, seed)
+            sc = spin_scenario(spin_s, seed, aircraft_name)
         else:
-            sc = state_scenario(state, seed)
+            sc = state_scenario(state, seed, aircraft_name)
         study = optimal_study(sc, target_alpha, cfg, progress=typer.echo)
         summary = build_summary(study, cfg, target_alpha, seed, command_line(), sc.name)
+        summary["aircraft"] = aircraft_name or DEFAULT_AIRCRAFT
         if scenario == "spin":
             summary["spin_s"] = spin_s
         write_optimal(out_dir, study, summary, cfg)

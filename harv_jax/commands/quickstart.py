@@ -14,7 +14,13 @@ from typing import Any
 
 import typer
 
-from harv_jax.cli_options import disturbance_options, policy_option, whole_number, zeta_option
+from harv_jax.cli_options import (
+    aircraft_option,
+    disturbance_options,
+    policy_option,
+    whole_number,
+    zeta_option,
+)
 
 #: The controllers of the quickstart (names in harv_jax.control.registry).
 QUICKSTART_CONTROLLERS = ("smc", "smc-brake", "rl", "hybrid")
@@ -25,6 +31,7 @@ CHUNK: int | None = None  # runs per compiled call: guards.auto_chunk
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @aircraft_option
     @disturbance_options
     def quickstart(
         out: Path = typer.Option(Path("runs/quickstart"), help="Output directory."),
@@ -34,6 +41,7 @@ def register(app: typer.Typer) -> None:
         zeta: str = zeta_option(),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
         disturbance_spec: Any = None,
+        aircraft_name: str | None = None,
     ) -> None:
         """Spin comparison and a Monte Carlo of SMC, braking SMC, RL and hybrid with the shipped policy, plus
         a report."""
@@ -75,6 +83,7 @@ def register(app: typer.Typer) -> None:
             seed,
             typer.echo,
             disturbances=disturbance_spec,
+            aircraft=aircraft_name,
         )
         write_comparison(out_dir / "compare", comp, command_line())
         for r in comp.rows:
@@ -88,7 +97,8 @@ def register(app: typer.Typer) -> None:
         prepare_out_dir(out_dir / "mc")  # with the run marker: --force may replace it later
         study = monte_carlo(
             names, policy, runs, ALPHA_TARGET_RAD, DURATION_S, seed, False, CHUNK, zeta=zeta,
-            command=command_line(), progress=typer.echo, disturbances=disturbance_spec
+            command=command_line(), progress=typer.echo, disturbances=disturbance_spec,
+            aircraft=aircraft_name,
         )  # fmt: skip
         write_monte_carlo(out_dir / "mc", study)
         typer.echo("[quickstart] 3/3 report")

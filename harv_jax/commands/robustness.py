@@ -6,7 +6,14 @@ from pathlib import Path
 
 import typer
 
-from harv_jax.cli_options import controllers_help, policy_option, real_number, whole_number, zeta_option
+from harv_jax.cli_options import (
+    aircraft_option,
+    controllers_help,
+    policy_option,
+    real_number,
+    whole_number,
+    zeta_option,
+)
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 
@@ -16,6 +23,7 @@ def _levels_help(name: str, unit: str, default: str) -> str:
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @aircraft_option
     def robustness(
         controller: str = typer.Option("smc,smc-brake,rl,hybrid", help=controllers_help()),
         policy: str = policy_option(),
@@ -40,6 +48,7 @@ def register(app: typer.Typer) -> None:
         chunk: int | None = typer.Option(None, parser=whole_number, help="Runs per compiled call."),
         out: Path = typer.Option(Path("runs/robustness"), help="Output directory."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
+        aircraft_name: str | None = None,
     ) -> None:
         """Margins: recovery, mean recovery time and TV of each controller against each disturbance level."""
         from harv_jax.cli_options import check_mc_options, command_line, warn_loop_mismatch
@@ -76,7 +85,9 @@ def register(app: typer.Typer) -> None:
         from harv_jax.plots.robustness import plot_robustness
 
         out_dir = prepare_out_dir(out, force)
-        doc = robustness_sweep(ctrls, runs, seed, levels, ALPHA_TARGET_RAD, duration, chunk, typer.echo)
+        doc = robustness_sweep(
+            ctrls, runs, seed, levels, ALPHA_TARGET_RAD, duration, chunk, typer.echo, aircraft=aircraft_name
+        )
         doc.update(controllers_setting(names, policy, zeta))
         doc["command"] = command_line()
         write_json(out_dir / "robustness.json", doc)

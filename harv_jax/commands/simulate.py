@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from harv_jax.cli_options import real_number, validate_state
+from harv_jax.cli_options import aircraft_option, real_number, validate_state
 from harv_jax.errors import UsageError
 from harv_jax.task.spec import DT_S, H0_FT
 
@@ -61,16 +61,18 @@ def run_simulate(
     duration_s: float,
     dt_s: float,
     throttle: float,
+    aircraft: str | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Integrate; returns (t [T+1], columns [T+1, 13]) with columns t-less CSV order."""
+    """Integrate; returns (t [T+1], columns [T+1, 13]) with columns t-less CSV order. ``aircraft``: a name
+    of ``harv_jax.aircraft.registry`` (None: the default)."""
     import jax
     import jax.numpy as jnp
 
-    from harv_jax.aircraft import harv
+    from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT, get_aircraft
     from harv_jax.dynamics import WIND_STATE_NAMES, rollout
 
     n_steps = int(round(duration_s / dt_s))
-    params = harv(throttle=throttle)
+    params = get_aircraft(aircraft or DEFAULT_AIRCRAFT, throttle=throttle)
     x0 = jnp.array([state[n] for n in WIND_STATE_NAMES], dtype=jnp.float32)
     u = jnp.array([controls["de"], controls["da"], controls["dr"]], dtype=jnp.float32)
     xs = jax.jit(rollout, static_argnames=())(x0, jnp.broadcast_to(u, (n_steps, 3)), params, dt_s)
@@ -82,6 +84,7 @@ def run_simulate(
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @aircraft_option
     def simulate(
         state: str = typer.Option(
             "",
@@ -94,6 +97,7 @@ def register(app: typer.Typer) -> None:
         throttle: float = typer.Option(0.2, parser=real_number, help="Fixed throttle in [0, 1]."),
         out: Path = typer.Option(Path("runs/simulate"), help="Output directory."),
         force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
+        aircraft_name: str | None = None,
     ) -> None:
         """Open-loop simulation with fixed controls: writes trajectory.csv and trajectory.png."""
         from harv_jax.dynamics import CONTROL_NAMES, WIND_STATE_NAMES
@@ -113,7 +117,7 @@ def register(app: typer.Typer) -> None:
             raise UsageError(f"--throttle {throttle} is outside [0, 1]")
         check_simulate(duration, dt)
         out_dir = prepare_out_dir(out, force)
-        t, cols = run_simulate(s, c, duration, dt, throttle)
+        t, cols = run_simulate(s, c, duration, dt, throttle, aircraft_name)
         names = ("t",) + WIND_STATE_NAMES + CONTROL_NAMES
         np.savetxt(
             out_dir / "trajectory.csv", np.column_stack([t, cols]), delimiter=",",

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import typer
 
-from harv_jax.cli_options import real_number, whole_number
+from harv_jax.cli_options import aircraft_option, real_number, whole_number
 from harv_jax.errors import UsageError
 
 
@@ -120,6 +120,7 @@ def run_train(
     target_recovery: float | None = None,
     watchdog_s: float | None = None,
     in_loop: str | None = None,
+    aircraft: str | None = None,
 ) -> dict[str, Any]:
     """Validate, build, train, write outputs; returns a summary dict. Raises UsageError on bad input.
 
@@ -131,10 +132,13 @@ def run_train(
     (None: automatic, see :mod:`harv_jax.ppo.watchdog`; 0: no watchdog).
     ``in_loop``: ``hybrid[:schedule]`` trains with the hybrid law inside the env step
     (:mod:`harv_jax.training.in_loop`); recorded in ``config.json`` and in the policy files.
+    ``aircraft``: the env's nominal aircraft, a name of ``harv_jax.aircraft.registry`` (None: the preset's
+    ``[env] aircraft``, else the registry's default); recorded as ``aircraft`` in the env settings.
     """
     if target_recovery is not None and not (math.isfinite(target_recovery) and 0 < target_recovery <= 1):
         raise UsageError(f"--target-recovery {target_recovery} must be in (0, 1]")
     from harv_jax import runlock
+    from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT
     from harv_jax.outdir import check_out_dir
     from harv_jax.ppo import checkpoint
     from harv_jax.ppo import config as ppo_config
@@ -149,6 +153,7 @@ def run_train(
         given += [ppo_config.flag_name(k) for k, v in sorted(overrides.items()) if v is not None]
         given += ["--init-policy"] if init_policy is not None else []
         given += ["--in-loop"] if in_loop is not None else []
+        given += ["--aircraft"] if aircraft is not None else []
         if given:
             raise UsageError(f"--resume continues the stored configuration; drop {given[0]}")
         if out is not None and Path(out).resolve() != Path(resume).resolve():
@@ -168,6 +173,7 @@ def run_train(
         check_periods(cfg, overrides.get("num_periods"))
         if in_loop is not None:
             env_table = {**env_table, LOOP_KEY: parse_loop(in_loop)}
+        env_table = {**env_table, "aircraft": aircraft or env_table.get("aircraft", DEFAULT_AIRCRAFT)}
         check_out_dir(out, force)  # a bad --out fails before the env is built
     loop = split_loop(env_table)[0]
 
@@ -265,6 +271,7 @@ def run_train(
 
 def register(app: typer.Typer) -> None:
     @app.command()
+    @aircraft_option
     def train(
         preset: str = typer.Option(
             None,
@@ -343,6 +350,7 @@ def register(app: typer.Typer) -> None:
             help="Train with a controller in the loop: hybrid[:SCHEDULE] (default schedule gated) applies "
             "u = u_RL + zeta u_SMC inside the env step, the policy's action being u_RL. Default none.",
         ),
+        aircraft_name: str | None = None,
     ) -> None:
         """Train PPO policies (several seeds at once) on the spin/upset recovery env."""
         overrides = {"total_steps": steps, "num_envs": num_envs, "unroll": unroll, "epochs": epochs,
@@ -358,6 +366,7 @@ def register(app: typer.Typer) -> None:
             target_recovery=target_recovery,
             watchdog_s=watchdog_s,
             in_loop=in_loop,
+            aircraft=aircraft_name,
         )
         ret = summary.get("episode_return", {})
         rec = summary.get("episode/recovered", {})
