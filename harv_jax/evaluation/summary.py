@@ -292,8 +292,8 @@ def flight_summary(
 
 
 #: Settings of a fly metrics.json shown by the report (in this order).
-FLY_SETTING_KEYS = ("controller", "scenario", "switching", "seed", "duration_s", "dt_s", "reference_rad",
-                    "spin_s", "t_engage_s")  # fmt: skip
+FLY_SETTING_KEYS = ("controller", "aircraft", "scenario", "switching", "seed", "duration_s", "dt_s",
+                    "reference_rad", "spin_s", "t_engage_s")  # fmt: skip
 
 #: Columns of the compare metrics table (compare_metrics.csv/.md and compare.json's rows).
 COMPARE_COLUMNS = (

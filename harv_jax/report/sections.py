@@ -88,6 +88,7 @@ def mc_section(doc: Doc, summary: dict) -> None:
         ("duration [s]", fmt(summary.get("duration_s"))),
         ("step [s]", fmt(summary.get("dt_s"))),
         ("seed", str(summary["seed"]) if summary.get("seed") is not None else "–"),
+        ("aircraft", str(summary.get("aircraft", "–"))),
         ("randomized aircraft", fmt(summary.get("randomize"))),
         ("disturbances", _disturbances(summary.get("disturbances"))),
         ("devices", ", ".join(summary.get("devices") or []) or "–"),
@@ -174,6 +175,8 @@ def fly_section(doc: Doc, metrics_doc: dict) -> None:
 
 def reconstruct_fly_command(metrics_doc: dict) -> str | None:
     """The ``harv-jax fly`` command equivalent to a metrics.json's settings (it records none)."""
+    from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT
+
     if "controller" not in metrics_doc or "scenario" not in metrics_doc:
         return None
     parts = ["harv-jax", "fly", "--controller", str(metrics_doc["controller"]), "--scenario",
@@ -182,6 +185,8 @@ def reconstruct_fly_command(metrics_doc: dict) -> str | None:
     opts = (("--target-alpha", ref[0] if ref else None), ("--duration", metrics_doc.get("duration_s")),
             ("--seed", metrics_doc.get("seed")), ("--switching", metrics_doc.get("switching")),
             ("--spin-s", metrics_doc.get("spin_s")))  # fmt: skip
+    if metrics_doc.get("aircraft") not in (None, DEFAULT_AIRCRAFT):
+        opts += (("--aircraft", metrics_doc["aircraft"]),)
     for flag, v in opts:
         if v is not None:
             parts += [flag, str(v)]
