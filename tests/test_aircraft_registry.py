@@ -130,6 +130,12 @@ def test_unknown_aircraft_on_the_command_line(monkeypatch, capsys, tmp_path):
     assert not out.exists()
 
 
+def test_train_resume_keeps_the_stored_aircraft(monkeypatch, capsys, tmp_path):
+    code, _, err = cli_run(monkeypatch, capsys, "train", "--resume", tmp_path, "--aircraft", "harv")
+    assert code == 2 and err.count("\n") == 1
+    assert err.startswith("harv-jax: error: --resume continues the stored configuration; drop --aircraft")
+
+
 def _runs(path) -> list[dict[str, str]]:
     with path.open() as f:
         return list(csv.DictReader(f))
