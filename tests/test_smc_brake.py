@@ -155,3 +155,22 @@ def test_short_monte_carlo_beside_the_smc(monkeypatch, capsys, tmp_path):
     # terminal errors, altitude loss, control TV and chatter of every run: finite
     assert len(rows) == 32 and all(np.isfinite(float(v)) for r in rows for v in r[15:21])
     assert "[mc] smc-brake vs smc:" in stdout and (out / "bands_smc-brake.png").exists()
+
+
+def test_smc_brake_v0_chooses_at_engagement_whether_to_brake():
+    """Engaged below v_engage_max: smc-brake's commands exactly; engaged above: the SMC's for the whole
+    sequence, also after the airspeed falls into the braking band (500 < V < 1200 ft/s)."""
+    v0 = registry.build_controller("smc-brake-v0")
+    brake, smc = make_smc_brake(), make_smc()
+    v0_apply, brake_apply, smc_apply = jax.jit(v0.apply), jax.jit(brake.apply), jax.jit(smc.apply)
+    slow = [_state(v, k % 3) for k, v in enumerate([900.0, 800.0, 700.0, 450.0])]
+    fast = [_state(v, k % 3) for k, v in enumerate([1300.0, 1100.0, 900.0, 700.0, 450.0])]
+    for states, other, other_apply in ((slow, brake, brake_apply), (fast, smc, smc_apply)):
+        refs = [REF] * len(states)
+        got = _fly(v0, states, refs, v0_apply)
+        want = _fly(other, states, refs, other_apply)
+        for g, w in zip(got, want, strict=True):
+            np.testing.assert_array_equal(g, w)
+    assert make_smc_brake().init(harv()).schedule.v_engage_max_fps == np.inf  # smc-brake: always brakes
+    with pytest.raises(UsageError, match="v_engage_max_fps"):
+        brake_schedule(v_engage_max_fps=0.0)

@@ -81,6 +81,14 @@ def _build_smc_brake(opts: ControllerOptions) -> Controller:
     return make_smc_brake(SMCConfig(switching=opts.switching))
 
 
+def _build_smc_brake_v0(opts: ControllerOptions) -> Controller:
+    from harv_jax.control.smc import SMCConfig
+    from harv_jax.control.smc_brake import V_ENGAGE_MAX_FPS, brake_schedule, make_smc_brake
+
+    schedule = brake_schedule(v_engage_max_fps=V_ENGAGE_MAX_FPS)
+    return make_smc_brake(SMCConfig(switching=opts.switching), schedule=schedule)
+
+
 def _policy_act(policy: str | None) -> Callable:
     """The deterministic action of the policy at ``policy``; UsageError if its sizes do not fit."""
     from harv_jax.policy import resolve_policy
@@ -127,6 +135,11 @@ CONTROLLERS: dict[str, ControllerEntry] = {
         _build_smc_brake,
         ("switching",),
         "the SMC flying alpha_d = 1.0 rad while V > 500 ft/s: brakes by drag (harv_jax.control.smc_brake)",
+    ),
+    "smc-brake-v0": ControllerEntry(
+        _build_smc_brake_v0,
+        ("switching",),
+        "smc-brake if the airspeed at engagement is below 1200 ft/s, else the SMC (control.smc_brake)",
     ),
 }
 
