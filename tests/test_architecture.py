@@ -100,6 +100,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "harv_jax.numfmt",
         "harv_jax.outdir",
         "harv_jax.runlock",
+        "harv_jax.smooth",
         "harv_jax",
     ),
 )

@@ -18,6 +18,7 @@ from flax import struct
 
 from harv_jax.control.smc import SMCGains
 from harv_jax.control.smc import default_gains as default_smc_gains
+from harv_jax.smooth import smoothstep
 
 #: A time since the last switch long enough for any dwell: the first step may switch at once.
 NEVER_SWITCHED_S = 1.0e9
@@ -86,8 +87,7 @@ def continuous_zeta(e_rad: jnp.ndarray, e_on_rad: jnp.ndarray, e_off_rad: jnp.nd
     """
     err = jnp.abs(e_rad)
     z = jnp.max(jnp.clip((err - e_off_rad) / jnp.maximum(e_on_rad - e_off_rad, 1e-9), 0.0, 1.0))
-    z = z * z * (3.0 - 2.0 * z)
-    return jnp.where(jnp.all(jnp.isfinite(err)), z, 1.0)
+    return jnp.where(jnp.all(jnp.isfinite(err)), smoothstep(z), 1.0)
 
 
 @struct.dataclass

@@ -47,6 +47,7 @@ from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
 from harv_jax.control.lie import output_lie_terms, smc_lie_terms
 from harv_jax.dynamics.state import WIND_INDEX
+from harv_jax.smooth import smoothstep_falling
 from harv_jax.task.spec import DT_S
 from harv_jax.units import RAD_PER_DEG
 
@@ -226,15 +227,9 @@ def guarded_solve(
     return u, SolveInfo(cond=cond, rho2=rho2, guard_active=rho2 > 0)
 
 
-def _smoothstep(z: jnp.ndarray) -> jnp.ndarray:
-    z = jnp.clip(z, 0.0, 1.0)
-    return z * z * (3.0 - 2.0 * z)
-
-
 def mu_channel_weight(gamma_rad: jnp.ndarray, gains: SMCGains) -> jnp.ndarray:
     """Weight of the mu sliding mode in the third row: 1 for |gamma| <= lo, 0 for |gamma| >= hi."""
-    width = jnp.maximum(gains.gamma_hi_rad - gains.gamma_lo_rad, 1e-6)
-    return 1.0 - _smoothstep((jnp.abs(gamma_rad) - gains.gamma_lo_rad) / width)
+    return smoothstep_falling(jnp.abs(gamma_rad), gains.gamma_lo_rad, gains.gamma_hi_rad)
 
 
 class SMCTerms(struct.PyTreeNode):

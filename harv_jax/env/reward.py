@@ -57,6 +57,7 @@ import jax.numpy as jnp
 
 from harv_jax.dynamics.state import alpha_rad, gamma_rad, omega_radps, vt_fps
 from harv_jax.env.config import RewardParams
+from harv_jax.smooth import smoothstep_falling
 from harv_jax.task.criteria import tracking_errors
 
 
@@ -134,16 +135,12 @@ def bonuses(errors_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
 
 def mu_weight(gamma_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
     """Weight of the mu terms: 1 for |gamma| <= mu_gamma_lo_rad, 0 for |gamma| >= mu_gamma_hi_rad."""
-    width = jnp.maximum(params.mu_gamma_hi_rad - params.mu_gamma_lo_rad, 1e-6)
-    t = jnp.clip((jnp.abs(gamma_rad) - params.mu_gamma_lo_rad) / width, 0.0, 1.0)
-    return 1.0 - t * t * (3.0 - 2.0 * t)
+    return smoothstep_falling(jnp.abs(gamma_rad), params.mu_gamma_lo_rad, params.mu_gamma_hi_rad)
 
 
 def alpha_weight(v_fps: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
     """Weight of the alpha terms: 1 for V <= alpha_v_lo_fps, 0 for V >= alpha_v_hi_fps."""
-    width = jnp.maximum(params.alpha_v_hi_fps - params.alpha_v_lo_fps, 1e-6)
-    t = jnp.clip((v_fps - params.alpha_v_lo_fps) / width, 0.0, 1.0)
-    return 1.0 - t * t * (3.0 - 2.0 * t)
+    return smoothstep_falling(v_fps, params.alpha_v_lo_fps, params.alpha_v_hi_fps)
 
 
 def speed_penalty(v_fps: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
