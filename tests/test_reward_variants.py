@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from harv_jax.env import reward, settings
-from harv_jax.env.config import paper_reward_params
+from harv_jax.env.reward_params import paper_reward_params, reward_fields
 from harv_jax.errors import UsageError
 
 W = paper_reward_params()
@@ -66,6 +66,28 @@ def test_paper_reward_bit_for_bit():
     for name in ("dense_alpha", "dense_beta", "dense_mu", "recovered", "action_rate", "speed"):
         terms = jax.vmap(lambda *z: reward.reward_terms(*z[:5], W, z[5])[0])(x, target, a, pot, term, a_prev)
         assert np.all(np.asarray(getattr(terms, name)) == 0.0), name
+
+
+def test_terms_raw_is_reward_raw():
+    """The step's r_raw is ``reward.raw`` (raw_weight included), bit for bit."""
+    w = W.replace(raw_weight=jnp.asarray(0.5, jnp.float32))
+    x, target, a, pot, term, _ = _random_steps(512)
+    terms, _ = jax.jit(jax.vmap(lambda *z: reward.reward_terms(*z, w)))(x, target, a, pot, term)
+    e_alpha = jax.vmap(reward.tracking_errors)(x, target)[:, 0]
+    raw = jax.jit(jax.vmap(lambda p, e: reward.raw(p, e, w)))(x[:, 3:6], e_alpha)
+    np.testing.assert_array_equal(terms.raw, jnp.where(term, 0.0, raw))
+
+
+def test_every_reward_field_declares_default_range_meaning():
+    """Each field's default lies in its declared range, with the declared length; the presets' ranges are
+    these."""
+    for f in reward_fields():
+        lo, hi = f.metadata["range"]
+        default = f.metadata["default"]
+        n = len(default) if isinstance(default, tuple) else None
+        assert f.metadata["meaning"], f.name
+        assert all(lo <= v <= hi for v in np.atleast_1d(default)), f.name
+        assert settings.REWARD_RANGES[f.name] == (lo, hi, n)
 
 
 def test_paper_presets_have_no_reward_table():

@@ -22,7 +22,7 @@ import numpy as np
 from flax import struct
 
 from harv_jax.aircraft.params import DEFAULT_THROTTLE, AircraftParams
-from harv_jax.aircraft.randomize import default_aircraft_randomization
+from harv_jax.aircraft.randomize import AircraftRandomization, default_aircraft_randomization
 from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT, check_aircraft_name, get_aircraft
 from harv_jax.dynamics.disturbances import (
     DEFAULT_DELAY_MAX_STEPS,
@@ -30,7 +30,8 @@ from harv_jax.dynamics.disturbances import (
     DEFAULT_GUST_TAU_S,
     DEFAULT_NOISE_STD_MAX,
 )
-from harv_jax.task.criteria import RECOVERED_TOL, Envelope, default_envelope
+from harv_jax.env.reward_params import RewardParams, paper_reward_params
+from harv_jax.task.criteria import Envelope, default_envelope
 from harv_jax.task.scenarios import RESET_HIGH, RESET_LOW
 from harv_jax.task.spec import (
     ALPHA_TARGET_BOUNDS_RAD,
@@ -92,109 +93,16 @@ class EnvConfig:
 
 
 @struct.dataclass
-class RewardParams:
-    """Reward weights (paper Section IV-A). All traced scalars.
-
-    Attributes:
-        w_p1: phase-1 weight of the coupling term |pq| + |qr| + |pr| (paper 0.3).
-        w_p21: phase-2 weight of e_alpha * q, also the rate weight of the potential (paper 0.3).
-        w_p22: phase-2 weight of ||omega||^2 + coupling (paper 0.05).
-        k_blend: logistic blend steepness, s/rad (paper 10).
-        omega_th_radps: blend threshold on ||omega||, rad/s (paper 0.17).
-        bonus_alpha, bonus_beta, bonus_mu: bonuses when |e| < bonus_tol_rad (paper +5, +3, +3).
-        bonus_tol_rad: bonus tolerance, rad (paper 0.017).
-        action_weight: weight of the action penalty -sum(a_i^2) on the normalized action (paper 1).
-        discount: PBRS Gamma (paper: the PPO discount, 0.99).
-        shaping_weight: multiplier of the PBRS term (1 = paper, 0 disables shaping).
-        terminal_reward: reward on leaving the envelope (paper -1000).
-        bonus_shape: 0 = the paper's indicator bonuses, 1 = smooth bands bonus_i exp(-(e_i/w_i)^2).
-        bonus_width_rad: [3] band widths w_i of the smooth bonuses (alpha, beta, mu), rad.
-        w_track: [3] weights of the dense per-channel terms -w_i min(|e_i| / track_clip_i, 1) (paper 0).
-        track_clip_rad: [3] errors at which the dense terms saturate, rad.
-        recovered_bonus: paid on every step whose state meets the recovery criterion (paper 0).
-        recovered_tol: [4] tolerances of that criterion: |e_alpha|, |e_beta|, |e_mu| (rad), ||omega|| (rad/s).
-        action_rate_weight: weight of -sum_i (a_i - a_prev_i)^2 on the normalized action (paper 0).
-        raw_weight: multiplier of the blended phase rewards r_raw (paper 1): below 1 the rate damping
-            weighs less against tracking.
-        mu_gamma_lo_rad, mu_gamma_hi_rad: the mu terms (bonus and dense) are weighted by 1 for |gamma| <= lo,
-            0 for |gamma| >= hi, a smoothstep between (mu is undefined at a vertical flight path; the SMC
-            blends its mu channel out over the same kind of band). Paper: no weighting (lo = hi = 10 rad,
-            beyond any |gamma|).
-        alpha_v_lo_fps, alpha_v_hi_fps: the alpha terms (bonus and dense) are weighted by 1 for V <= lo, 0 for
-            V >= hi, a smoothstep between (fast, the aircraft sheds energy at high alpha instead of tracking
-            alpha_d). Paper: no weighting (lo = hi = 1e6 ft/s, beyond any V).
-        alpha_brake_on, alpha_brake_rad: when alpha_brake_on = 1, the alpha terms are not weighted out by
-            speed but track alpha_ref = w alpha_d + (1 - w) alpha_brake, w the speed weight above: a high-drag
-            alpha while fast ("energy braking"). Paper: off (0).
-        speed_weight, speed_ref_fps, speed_scale_fps: dense excess-speed term
-            -speed_weight clip((V - speed_ref) / speed_scale, 0, 1) (paper: speed_weight 0).
-
-    The fields after ``terminal_reward`` are ours (``experiments/reward_ablation``); their defaults leave the
-    paper's reward unchanged bit for bit.
-    """
-
-    w_p1: jnp.ndarray
-    w_p21: jnp.ndarray
-    w_p22: jnp.ndarray
-    k_blend: jnp.ndarray
-    omega_th_radps: jnp.ndarray
-    bonus_alpha: jnp.ndarray
-    bonus_beta: jnp.ndarray
-    bonus_mu: jnp.ndarray
-    bonus_tol_rad: jnp.ndarray
-    action_weight: jnp.ndarray
-    discount: jnp.ndarray
-    shaping_weight: jnp.ndarray
-    terminal_reward: jnp.ndarray
-    bonus_shape: jnp.ndarray
-    bonus_width_rad: jnp.ndarray
-    w_track: jnp.ndarray
-    track_clip_rad: jnp.ndarray
-    recovered_bonus: jnp.ndarray
-    recovered_tol: jnp.ndarray
-    action_rate_weight: jnp.ndarray
-    raw_weight: jnp.ndarray
-    mu_gamma_lo_rad: jnp.ndarray
-    mu_gamma_hi_rad: jnp.ndarray
-    alpha_v_lo_fps: jnp.ndarray
-    alpha_v_hi_fps: jnp.ndarray
-    alpha_brake_on: jnp.ndarray
-    alpha_brake_rad: jnp.ndarray
-    speed_weight: jnp.ndarray
-    speed_ref_fps: jnp.ndarray
-    speed_scale_fps: jnp.ndarray
-
-
-def paper_reward_params(discount: float = 0.99, dtype=None) -> RewardParams:
-    """The paper's reward weights (Section IV-A)."""
-
-    def f(v):
-        return jnp.asarray(v, dtype=dtype or jnp.result_type(float))
-
-    return RewardParams(
-        w_p1=f(0.3), w_p21=f(0.3), w_p22=f(0.05), k_blend=f(10.0), omega_th_radps=f(0.17),
-        bonus_alpha=f(5.0), bonus_beta=f(3.0), bonus_mu=f(3.0), bonus_tol_rad=f(0.017),
-        action_weight=f(1.0), discount=f(discount), shaping_weight=f(1.0), terminal_reward=f(-1000.0),
-        bonus_shape=f(0.0), bonus_width_rad=f([0.017, 0.017, 0.017]), w_track=f([0.0, 0.0, 0.0]),
-        track_clip_rad=f([0.5, 0.5, 0.5]), recovered_bonus=f(0.0), recovered_tol=f(RECOVERED_TOL),
-        action_rate_weight=f(0.0), raw_weight=f(1.0), mu_gamma_lo_rad=f(10.0), mu_gamma_hi_rad=f(10.0),
-        alpha_v_lo_fps=f(1e6), alpha_v_hi_fps=f(1e6), alpha_brake_on=f(0.0), alpha_brake_rad=f(1.0),
-        speed_weight=f(0.0), speed_ref_fps=f(600.0),
-        speed_scale_fps=f(400.0),
-    )  # fmt: skip
-
-
-@struct.dataclass
-class RandomizationParams:
+class RandomizationParams(AircraftRandomization):
     """Domain-randomization switches and ranges, resampled every episode. All traced.
 
     Each ``*_on`` is a bool switch; a switched-off item takes its nominal value. Ranges are half-widths
     of uniform draws of multiplicative factors ``1 + frac * U(-1, 1)`` unless stated.
 
+    The aircraft draws' fields come first, inherited from ``aircraft.randomize.AircraftRandomization`` (with
+    its defaults): this pytree is one wherever that one is asked for. The env's own:
+
     Attributes:
-        mass_on, mass_frac, inertia_frac, aero_on, aero_damping_frac, aero_control_frac, aero_static_frac,
-            aero_basic_frac: the aircraft draws, as ``aircraft.randomize.AircraftRandomization`` (same
-            fields and defaults; this pytree can be passed wherever that one is asked for).
         gust_on: body-axis Ornstein-Uhlenbeck gust.
         gust_std_max_fps: per-episode stationary gust std per axis ~ U(0, this), ft/s (default 10).
         gust_tau_min_s, gust_tau_max_s: per-episode gust correlation time ~ U(min, max), s (default
@@ -208,14 +116,6 @@ class RandomizationParams:
             up to 20 ms at dt 0.01 s), capped at ``EnvConfig.max_delay_steps``.
     """
 
-    mass_on: jnp.ndarray
-    mass_frac: jnp.ndarray
-    inertia_frac: jnp.ndarray
-    aero_on: jnp.ndarray
-    aero_damping_frac: jnp.ndarray
-    aero_control_frac: jnp.ndarray
-    aero_static_frac: jnp.ndarray
-    aero_basic_frac: jnp.ndarray
     gust_on: jnp.ndarray
     gust_std_max_fps: jnp.ndarray
     gust_tau_min_s: jnp.ndarray
@@ -236,14 +136,16 @@ def default_randomization_params(enabled: bool = True, dtype=None) -> Randomizat
     on = jnp.asarray(enabled, dtype=bool)
     ac = default_aircraft_randomization(enabled, dtype)
     return RandomizationParams(
-        mass_on=ac.mass_on, mass_frac=ac.mass_frac, inertia_frac=ac.inertia_frac,
-        aero_on=ac.aero_on, aero_damping_frac=ac.aero_damping_frac, aero_control_frac=ac.aero_control_frac,
-        aero_static_frac=ac.aero_static_frac, aero_basic_frac=ac.aero_basic_frac,
-        gust_on=on, gust_std_max_fps=f(DEFAULT_GUST_STD_MAX_FPS), gust_tau_min_s=f(DEFAULT_GUST_TAU_S[0]),
+        **{k.name: getattr(ac, k.name) for k in dataclasses.fields(ac)},
+        gust_on=on,
+        gust_std_max_fps=f(DEFAULT_GUST_STD_MAX_FPS),
+        gust_tau_min_s=f(DEFAULT_GUST_TAU_S[0]),
         gust_tau_max_s=f(DEFAULT_GUST_TAU_S[1]),
-        noise_on=on, noise_std_max=f(DEFAULT_NOISE_STD_MAX),
-        delay_on=on, delay_max_steps=jnp.asarray(DEFAULT_DELAY_MAX_STEPS, dtype=jnp.int32),
-    )  # fmt: skip
+        noise_on=on,
+        noise_std_max=f(DEFAULT_NOISE_STD_MAX),
+        delay_on=on,
+        delay_max_steps=jnp.asarray(DEFAULT_DELAY_MAX_STEPS, dtype=jnp.int32),
+    )
 
 
 @struct.dataclass
@@ -271,10 +173,13 @@ def paper_reset_params(dtype=None) -> ResetParams:
         return jnp.asarray(v, dtype=dtype or jnp.result_type(float))
 
     return ResetParams(
-        low=f(RESET_LOW), high=f(RESET_HIGH), alpha_d_low_rad=f(ALPHA_TARGET_BOUNDS_RAD[0]),
-        alpha_d_high_rad=f(ALPHA_TARGET_BOUNDS_RAD[1]), beta_d_rad=f(BETA_TARGET_RAD),
+        low=f(RESET_LOW),
+        high=f(RESET_HIGH),
+        alpha_d_low_rad=f(ALPHA_TARGET_BOUNDS_RAD[0]),
+        alpha_d_high_rad=f(ALPHA_TARGET_BOUNDS_RAD[1]),
+        beta_d_rad=f(BETA_TARGET_RAD),
         mu_d_rad=f(MU_TARGET_RAD),
-    )  # fmt: skip
+    )
 
 
 @struct.dataclass

@@ -56,7 +56,7 @@ import jax
 import jax.numpy as jnp
 
 from harv_jax.dynamics.state import alpha_rad, gamma_rad, omega_radps, vt_fps
-from harv_jax.env.config import RewardParams
+from harv_jax.env.reward_params import RewardParams
 from harv_jax.smooth import smoothstep_falling
 from harv_jax.task.criteria import tracking_errors
 
@@ -118,9 +118,10 @@ def blend(omega_norm_radps: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
 
 
 def raw(pqr_radps: jnp.ndarray, e_alpha_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
-    """r_raw = (1 - eps) r_phase1 + eps r_phase2."""
+    """r_raw = raw_weight ((1 - eps) r_phase1 + eps r_phase2) (raw_weight 1, the paper's: x * 1.0 == x)."""
     eps = blend(jnp.sqrt(omega_norm_sq(pqr_radps)), params)
-    return (1.0 - eps) * phase1(pqr_radps, params) + eps * phase2(e_alpha_rad, pqr_radps, params)
+    blended = (1.0 - eps) * phase1(pqr_radps, params) + eps * phase2(e_alpha_rad, pqr_radps, params)
+    return params.raw_weight * blended
 
 
 def bonuses(errors_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
@@ -218,7 +219,7 @@ def reward_terms(
     eps = blend(jnp.sqrt(omega_norm_sq(pqr)), params)
     r1 = phase1(pqr, params)
     r2 = phase2(e_alpha, pqr, params)
-    r_raw = params.raw_weight * ((1.0 - eps) * r1 + eps * r2)  # raw_weight 1 (paper): x * 1.0 == x
+    r_raw = raw(pqr, e_alpha, params)
     w_mu = mu_weight(gamma_rad(x_wind), params)  # exactly 1 at the paper's settings: x * 1.0 == x
     w_alpha = alpha_weight(vt_fps(x_wind), params)  # exactly 1 at the paper's settings
     brake = params.alpha_brake_on > 0.5  # off (paper): the errors and weights are taken as they are
@@ -231,36 +232,36 @@ def reward_terms(
     pot_next = potential(e_alpha, pqr, params)
     pot_target = jnp.where(terminated, jnp.zeros_like(pot_next), pot_next)
     r_shaping = shaping(pot_target, potential_prev, params)
-    zero = jnp.zeros_like(r_raw)
-
-    def paid(v):
-        return jnp.where(terminated, zero, v)
-
     dense = dense_tracking(track_errors, params) * channel_w
     r_recovered = recovered_term(errors, pqr, params)
     r_rate = action_rate_penalty(action, action if action_prev is None else action_prev, params)
     r_speed = speed_penalty(vt_fps(x_wind), params)
+    zero = jnp.zeros_like(r_raw)
     r_terminal = jnp.where(terminated, params.terminal_reward, zero)
     # the paper's sum first, our terms added after it: zero weights leave it bit for bit
     performance = (r_raw + jnp.sum(bonus) + r_action) + (jnp.sum(dense) + r_recovered + r_rate + r_speed)
     total = jnp.where(terminated, r_terminal, performance) + r_shaping
+    # the performance terms, paid only on a non-terminating step (reported as 0 on a terminating one)
+    paid = {
+        "phase1": r1,
+        "phase2": r2,
+        "blend": eps,
+        "raw": r_raw,
+        "bonus_alpha": bonus[0],
+        "bonus_beta": bonus[1],
+        "bonus_mu": bonus[2],
+        "action": r_action,
+        "dense_alpha": dense[0],
+        "dense_beta": dense[1],
+        "dense_mu": dense[2],
+        "recovered": r_recovered,
+        "action_rate": r_rate,
+        "speed": r_speed,
+    }
     terms = RewardTerms(
-        phase1=paid(r1),
-        phase2=paid(r2),
-        blend=paid(eps),
-        raw=paid(r_raw),
-        bonus_alpha=paid(bonus[0]),
-        bonus_beta=paid(bonus[1]),
-        bonus_mu=paid(bonus[2]),
-        action=paid(r_action),
+        **{k: jnp.where(terminated, zero, v) for k, v in paid.items()},
         shaping=r_shaping,
         terminal=r_terminal,
-        dense_alpha=paid(dense[0]),
-        dense_beta=paid(dense[1]),
-        dense_mu=paid(dense[2]),
-        recovered=paid(r_recovered),
-        action_rate=paid(r_rate),
-        speed=paid(r_speed),
         total=total,
     )
     return terms, pot_next

@@ -36,10 +36,10 @@ from harv_jax.env.config import (
     EnvConfig,
     EnvParams,
     RandomizationParams,
-    RewardParams,
     default_params,
     strip_weak_type,
 )
+from harv_jax.env.reward_params import RewardParams, reward_fields
 from harv_jax.errors import UsageError
 from harv_jax.guards import check_seed
 
@@ -60,38 +60,10 @@ ENV_RANGES: dict[str, tuple[float, float] | None] = {
     "discount": (1e-6, 1.0),
 }
 
-#: Allowed range and length (None: scalar) of every reward field.
+#: Allowed range and length (None: scalar) of every reward field, as ``RewardParams`` declares them.
 REWARD_RANGES: dict[str, tuple[float, float, int | None]] = {
-    "w_p1": (0.0, 100.0, None),
-    "w_p21": (0.0, 100.0, None),
-    "w_p22": (0.0, 100.0, None),
-    "k_blend": (0.0, 1000.0, None),
-    "omega_th_radps": (0.0, 100.0, None),
-    "bonus_alpha": (0.0, 1000.0, None),
-    "bonus_beta": (0.0, 1000.0, None),
-    "bonus_mu": (0.0, 1000.0, None),
-    "bonus_tol_rad": (0.0, math.pi, None),
-    "action_weight": (0.0, 1000.0, None),
-    "discount": (0.0, 1.0, None),
-    "shaping_weight": (0.0, 1000.0, None),
-    "terminal_reward": (-1e7, 0.0, None),
-    "bonus_shape": (0.0, 1.0, None),
-    "bonus_width_rad": (1e-6, math.pi, 3),
-    "w_track": (0.0, 1000.0, 3),
-    "track_clip_rad": (1e-6, 2.0 * math.pi, 3),
-    "recovered_bonus": (0.0, 1000.0, None),
-    "recovered_tol": (1e-6, 10.0, 4),
-    "action_rate_weight": (0.0, 1000.0, None),
-    "raw_weight": (0.0, 100.0, None),
-    "mu_gamma_lo_rad": (0.0, 10.0, None),
-    "mu_gamma_hi_rad": (0.0, 10.0, None),
-    "alpha_v_lo_fps": (0.0, 1e6, None),
-    "alpha_v_hi_fps": (0.0, 1e6, None),
-    "alpha_brake_on": (0.0, 1.0, None),
-    "alpha_brake_rad": (-0.5, 1.5, None),
-    "speed_weight": (0.0, 1000.0, None),
-    "speed_ref_fps": (0.0, 1e4, None),
-    "speed_scale_fps": (1.0, 1e4, None),
+    f.name: (*f.metadata["range"], len(d) if isinstance(d := f.metadata["default"], tuple) else None)
+    for f in reward_fields()
 }
 #: Allowed range of the randomization ranges (switches are booleans).
 RANDOMIZATION_RANGES: dict[str, tuple[float, float]] = {
