@@ -1,4 +1,4 @@
-"""Evaluate every seed of a training run against the SMC and the braking SMC, on the criteria a user
+"""Evaluate every seed of a training run against the SMC and the braking SMCs, on the criteria a user
 compares by: recovered share, mean recovery time (not-recovered runs at 60 s), paired shares of runs
 slower / faster than the SMC by more than 1 s, p95, control TV, and the 30 s developed spin.
 
@@ -6,9 +6,9 @@ slower / faster than the SMC by more than 1 s, p95, control TV, and the 30 s dev
 
 For each run folder, each ``policy/policy_seed<i>.npz`` flies RL-only (``rl``) and in the default hybrid
 (``hybrid``, simplex schedule) on the 1000-run Monte Carlo of ``harv-jax mc`` (``--runs``, nominal aircraft
-and ``--randomize``), with the SMC and the braking SMC (``smc-brake``) on the same runs (common random
-numbers), and on the 30 s spin of ``harv-jax compare``. Writes JSON (every seed, IQM with a 95% bootstrap CI
-over seeds, which seeds pass each criterion) and prints one table row per policy.
+and ``--randomize``), with the SMC and the braking SMCs (``smc-brake``, ``smc-brake-v0``) on the same runs
+(common random numbers), and on the 30 s spin of ``harv-jax compare``. Writes JSON (every seed, IQM with a
+95% bootstrap CI over seeds, which seeds pass each criterion) and prints one table row per policy.
 """
 
 from __future__ import annotations
@@ -111,12 +111,16 @@ def main() -> None:
         "randomized": sample_mc_inputs(key, a.n, nominal, disturbances=KNOWN_AIRCRAFT),
     }
     base = {
-        c: {k: mc_block(c, ControllerOptions(), v) for k, v in inputs.items()} for c in ("smc", "smc-brake")
+        c: {k: mc_block(c, ControllerOptions(), v) for k, v in inputs.items()}
+        for c in ("smc", "smc-brake", "smc-brake-v0")
     }
     smc = {k: score(base["smc"][k], base["smc"][k]) for k in inputs}
     brake = {k: score(base["smc-brake"][k], base["smc"][k]) for k in inputs}
+    brake_v0 = {k: score(base["smc-brake-v0"][k], base["smc"][k]) for k in inputs}
     spin_smc, spin_brake = spin_time("smc", None), spin_time("smc-brake", None)
+    spin_brake_v0 = spin_time("smc-brake-v0", None)
     print(f"smc {smc['nominal']} spin {spin_smc}\nsmc-brake {brake['nominal']} spin {spin_brake}", flush=True)
+    print(f"smc-brake-v0 {brake_v0['nominal']} spin {spin_brake_v0}", flush=True)
     policies = []
     for run in a.runs:
         for path in sorted((run / "policy").glob("policy_seed*.npz"), key=lambda p: int(p.stem[11:])):
@@ -149,6 +153,8 @@ def main() -> None:
                        ("rl_mean_over_smc", lambda p: p["rl"]["nominal"]["mean_over_smc"]),
                        ("rl_mean_over_smc_brake",
                         lambda p: p["rl"]["nominal"]["t_mean_nr_s"] / brake["nominal"]["t_mean_nr_s"]),
+                       ("rl_mean_over_smc_brake_v0",
+                        lambda p: p["rl"]["nominal"]["t_mean_nr_s"] / brake_v0["nominal"]["t_mean_nr_s"]),
                        ("rl_slower_than_smc_by_1s", lambda p: p["rl"]["nominal"]["slower_than_smc_by_1s"]),
                        ("rl_tv_mean_rad", lambda p: p["rl"]["nominal"]["tv_mean_rad"]),
                        ("hybrid_mean_over_smc", lambda p: p["hybrid"]["mean_over_smc"])):  # fmt: skip
@@ -161,6 +167,8 @@ def main() -> None:
         "duration_s": DURATION_S,
         "smc": smc,
         "smc_brake": brake,
+        "smc_brake_v0": brake_v0,
+        "spin_smc_brake_v0_s": spin_brake_v0,
         "spin_smc_s": spin_smc,
         "spin_smc_brake_s": spin_brake,
         "policies": policies,
