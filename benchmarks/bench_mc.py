@@ -6,8 +6,6 @@ Usage::
     python benchmarks/bench_mc.py                        # 1000 runs x 60 s, smc and hybrid, local devices
     python benchmarks/bench_mc.py --envelope             # + the 100 x 100 envelope map per controller
     python benchmarks/bench_mc.py --quick                # 64 runs x 5 s (+ 8 x 8 map): a sanity run
-    python benchmarks/bench_mc.py --reference            # + the reference implementation, same inputs
-    python benchmarks/bench_mc.py --reference --envelope # before/after of both studies, one JSON
     python benchmarks/bench_mc.py --envelope --compare-chunk 250  # + chunks of 250 runs (the old default)
 
 What is timed: ``harv_jax.evaluation.monte_carlo.run_mc`` exactly as ``harv-jax mc`` calls it (common
@@ -28,15 +26,13 @@ closed-loop step of one run, the body of ``closed_loop``'s scan: wind state, con
 SMC, filter, whatever the controller does), actuator, RK4 of the body-axis dynamics. (The cost analysis of
 a whole rollout counts a ``while`` body once, so the step is lowered on its own.) Achieved FLOP/s =
 FLOPs/step x runs x steps / run time; the ceiling is the best fp32 square matmul measured in the same run
-(the approach of ``bench_train.py``). With ``--reference``, ``before_after`` lists per controller and study
-the compile and run seconds before (reference) and after (current) and the run-time speed-up. Results go
-to ``benchmarks/results/mc_<machine>.json`` (``mc_<machine>_quick.json`` with ``--quick``).
+(the approach of ``bench_train.py``). Results go to ``benchmarks/results/mc_<machine>.json``
+(``mc_<machine>_quick.json`` with ``--quick``).
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import datetime as _dt
 import platform
 import sys
@@ -163,7 +159,7 @@ def bench_controller(
     rows = []
     for i, chunk in enumerate(chunks):
         # the best compile: the first call of a process also pays one-time warm-up (the controller built
-        # first would otherwise be charged for it, e.g. ``current`` before ``reference``)
+        # first would otherwise be charged for it)
         ws = walls[i]
         wall = {"compile": min(w["compile"] for w in ws), "run": min(w["run"] for w in ws)}
         out = outs[i]
@@ -236,21 +232,6 @@ def _pairs(
                 yield f"{study}_{name}", first, other
 
 
-def before_after(rows: list[dict], env_rows: list[dict]) -> dict[str, dict[str, float]]:
-    """Per controller and study (``mc``, ``envelope``): compile and run seconds of the reference (before
-    tests/speed_reference.py) and the current implementation, and run-time speed-up = reference / current."""
-    return {
-        key: {
-            "compile_s_before": ref["compile_s"],
-            "compile_s_after": cur["compile_s"],
-            "run_s_before": ref["run_s"],
-            "run_s_after": cur["run_s"],
-            "run_speedup": ref["run_s"] / cur["run_s"],
-        }
-        for key, ref, cur in _pairs(rows, env_rows, "reference", lambda impl: impl == "current")
-    }
-
-
 def chunk_comparison(rows: list[dict], env_rows: list[dict]) -> dict[str, dict[str, float]]:
     """Per controller and study: run seconds with ``--compare-chunk`` and with ``--chunk`` (same process,
     alternating), and the speed-up = compare / chunk."""
@@ -266,19 +247,6 @@ def chunk_comparison(rows: list[dict], env_rows: list[dict]) -> dict[str, dict[s
         }
         for key, cur, r in _pairs(rows, env_rows, "current", lambda impl: impl.startswith("current_chunk_"))
     }
-
-
-@contextlib.contextmanager
-def _implementation(name: str) -> Iterator[None]:
-    """``current``: the package as it is; ``reference``: the reference SMC/aero/atmosphere swapped in."""
-    if name == "current":
-        yield
-        return
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-    from speed_reference import use_reference
-
-    with use_reference():
-        yield
 
 
 def main() -> None:
@@ -305,10 +273,6 @@ def main() -> None:
     ap.add_argument("--matmul-n", type=int, default=None, help="matmul size (CPU 2048, GPU 8192)")
     ap.add_argument("--host-devices", type=int, default=cpu_cores(), help="XLA host devices on a CPU")
     ap.add_argument("--quick", action="store_true", help="64 runs x 5 s (+ 8 x 8 map): a sanity run")
-    ap.add_argument(
-        "--reference", action="store_true",
-        help="also time the reference implementation (tests/speed_reference.py), same inputs",
-    )  # fmt: skip
     ap.add_argument("--machine", default=None)
     ap.add_argument("--note", default="", help="free text stored in the JSON (e.g. 'machine shared')")
     ap.add_argument("--out-dir", type=Path, default=RESULTS_DIR)
@@ -341,48 +305,45 @@ def main() -> None:
     ceiling = matmul_ceiling(matmul_n)
     print(f"fp32 matmul ceiling: {ceiling['flops_per_s'] / 1e9:,.1f} GFLOP/s (n = {matmul_n})", flush=True)
     rows, env_rows, skipped = [], [], {}
-    impls = ["current"] + (["reference"] if args.reference else [])
     for name in [c.strip() for c in args.controllers.split(",") if c.strip()]:
-        for impl in impls:
-            with _implementation(impl):
-                try:
-                    ctrl = build_controller(name, ControllerOptions(policy=args.policy))
-                except Exception as e:  # e.g. hybrid not built yet: record and go on
-                    skipped[name] = f"{type(e).__name__}: {e}"
-                    print(f"{name}: skipped ({skipped[name]})", flush=True)
-                    break
-                mc_rows = bench_controller(
-                    name, ctrl, runs, n_steps, chunks, args.seed, ceiling["flops_per_s"], args.repeats
-                )
-                for i, r in enumerate(mc_rows):  # the settings after the first are a comparison
-                    r["implementation"] = impl if i == 0 else f"{impl}_chunk_{r['chunk_setting']}"
-                    r["load_average_1min_after"] = load_average_1min()
-                es = []
-                for i, c in enumerate(env_chunks if args.envelope else []):
-                    e = bench_envelope(name, ctrl, env_n, n_steps, c, args.seed)
-                    e["implementation"] = impl if i == 0 else f"{impl}_chunk_{e['chunk_setting']}"
-                    e["load_average_1min_after"] = load_average_1min()
-                    es.append(e)
-            again = matmul_ceiling(matmul_n)  # re-measured next to every timing; the best value is used
-            ceiling["flops_per_s"] = max(ceiling["flops_per_s"], again["flops_per_s"])
-            rows.extend(mc_rows)
-            env_rows.extend(es)
-            for r in mc_rows:
-                print(
-                    f"{name:>7} ({r['implementation']}): {runs} runs x {n_steps} steps in chunks of "
-                    f"{r['chunk']}: compile {r['compile_s']:.1f} s, run {r['run_s']:.2f} s "
-                    f"({r['run_steps_per_s']:,.0f} run-steps/s), {r['step_cost'].get('flops', 0):,.0f} "
-                    f"FLOPs/step = {100 * r['fraction_of_matmul_ceiling']:.2f}% of the matmul ceiling, "
-                    f"recovery {r['recovery_rate']:.3f}",
-                    flush=True,
-                )
-            for e in es:
-                print(
-                    f"{name:>7} ({e['implementation']}): envelope {env_n} x {env_n} = {e['runs']} runs in "
-                    f"chunks of {e['chunk']}: compile {e['compile_s']:.1f} s, run {e['run_s']:.1f} s, "
-                    f"recovered {100 * e['recovery_rate']:.1f}%",
-                    flush=True,
-                )
+        try:
+            ctrl = build_controller(name, ControllerOptions(policy=args.policy))
+        except Exception as e:  # e.g. hybrid not built yet: record and go on
+            skipped[name] = f"{type(e).__name__}: {e}"
+            print(f"{name}: skipped ({skipped[name]})", flush=True)
+            continue
+        mc_rows = bench_controller(
+            name, ctrl, runs, n_steps, chunks, args.seed, ceiling["flops_per_s"], args.repeats
+        )
+        for i, r in enumerate(mc_rows):  # the settings after the first are a comparison
+            r["implementation"] = "current" if i == 0 else f"current_chunk_{r['chunk_setting']}"
+            r["load_average_1min_after"] = load_average_1min()
+        es = []
+        for i, c in enumerate(env_chunks if args.envelope else []):
+            e = bench_envelope(name, ctrl, env_n, n_steps, c, args.seed)
+            e["implementation"] = "current" if i == 0 else f"current_chunk_{e['chunk_setting']}"
+            e["load_average_1min_after"] = load_average_1min()
+            es.append(e)
+        again = matmul_ceiling(matmul_n)  # re-measured next to every timing; the best value is used
+        ceiling["flops_per_s"] = max(ceiling["flops_per_s"], again["flops_per_s"])
+        rows.extend(mc_rows)
+        env_rows.extend(es)
+        for r in mc_rows:
+            print(
+                f"{name:>7} ({r['implementation']}): {runs} runs x {n_steps} steps in chunks of "
+                f"{r['chunk']}: compile {r['compile_s']:.1f} s, run {r['run_s']:.2f} s "
+                f"({r['run_steps_per_s']:,.0f} run-steps/s), {r['step_cost'].get('flops', 0):,.0f} "
+                f"FLOPs/step = {100 * r['fraction_of_matmul_ceiling']:.2f}% of the matmul ceiling, "
+                f"recovery {r['recovery_rate']:.3f}",
+                flush=True,
+            )
+        for e in es:
+            print(
+                f"{name:>7} ({e['implementation']}): envelope {env_n} x {env_n} = {e['runs']} runs in "
+                f"chunks of {e['chunk']}: compile {e['compile_s']:.1f} s, run {e['run_s']:.1f} s, "
+                f"recovered {100 * e['recovery_rate']:.1f}%",
+                flush=True,
+            )
     rows_current = [r for r in rows if r["implementation"] == "current"]
     for r in rows:  # against the best ceiling of the whole run (a busy machine otherwise inflates it)
         r["fraction_of_matmul_ceiling"] = r["achieved_flops_per_s"] / ceiling["flops_per_s"]
@@ -435,7 +396,6 @@ def main() -> None:
         "envelope": env_rows or None,
         "skipped": skipped,
         "targets": targets,
-        "before_after": before_after(rows, env_rows),
         "chunk_comparison": chunk_comparison(rows, env_rows),
     }
     name = f"mc_{machine}_quick.json" if args.quick else f"mc_{machine}.json"

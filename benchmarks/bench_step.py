@@ -1,9 +1,8 @@
-"""Cost of one closed-loop step: plant vs SMC vs hybrid, side by side, against the reference SMC.
+"""Cost of one closed-loop step: plant vs SMC vs hybrid, side by side.
 
 Usage::
 
     python benchmarks/bench_step.py [--batch 1000] [--steps 100] [--repeats 11] [--copies 1] [--quick]
-        [--no-reference]
 
 What is timed (one XLA device, ``jit(vmap(lax.scan of --steps steps))`` over ``--batch`` aircraft from the
 Monte Carlo's reset bounds): a *plant step* (``to_wind``, actuator, RK4, the non-finite guard; the command is
@@ -13,11 +12,8 @@ policy adds to a hybrid step; ``zero_policy_plus_forward_over_smc`` is the simpl
 logic and the policy ran one after another). The variants run interleaved, ``--repeats`` times each, and the
 best time is used, so the ratios hold on a busy machine. ``--copies N`` builds the current steps N times and
 uses the median of each build's best time (on a shared virtual machine two executables of the same code
-differed by up to ~10%; each build's times are kept under ``us_per_step_each_copy``). With the test
-references importable (``tests/speed_reference.py``, the reference implementation: one linearization
-with 7 tangents, a LAPACK SVD per aircraft, the previous aero/atmosphere/forces) the same steps are also
-built from them ("reference"). XLA's cost analysis of one step of one aircraft (FLOPs, transcendentals) and
-the compile times are recorded.
+differed by up to ~10%; each build's times are kept under ``us_per_step_each_copy``). XLA's cost analysis of
+one step of one aircraft (FLOPs, transcendentals) and the compile times are recorded.
 Results go to ``benchmarks/results/step_<machine>.json``.
 """
 
@@ -121,7 +117,7 @@ def build(
     out = {}
     variants = {"plant": (plant_step, 2, (body0, delta0, hold, params))}
     kinds = {name: (name, "continuous") for name in controllers}
-    if gated:  # the gated/simplex schedules and the policy alone; not in the reference
+    if gated:  # the gated/simplex schedules and the policy alone
         kinds["hybrid_gated"] = ("hybrid", "gated")
         kinds["hybrid_simplex"] = ("hybrid", "simplex")
         kinds["rl"] = ("rl", "continuous")
@@ -173,9 +169,6 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--copies", type=int, default=1, help="builds of the current steps (median of bests)")
     ap.add_argument("--policy", default=None, help="the hybrid's policy (default: the shipped policy)")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument(
-        "--no-reference", action="store_true", help="skip the reference steps (tests/speed_reference.py)"
-    )
     ap.add_argument("--quick", action="store_true", help="50 steps, 5 repeats")
     ap.add_argument("--machine", default=None)
     ap.add_argument("--note", default="", help="free text stored in the JSON (e.g. 'machine shared')")
@@ -194,19 +187,7 @@ def main(argv: list[str] | None = None) -> dict:
     print(f"device {dev.platform}:{dev.device_kind}  jax {jax.__version__}  cpu {cpu_model()}", flush=True)
     copies = {c: build(args.batch, args.steps, args.policy, args.seed, True) for c in range(args.copies)}
     sets = {"current": copies[0]}
-    skipped = None
-    if not args.no_reference:
-        try:
-            sys.path.insert(0, str(ROOT / "tests"))
-            from speed_reference import use_reference
-
-            with use_reference():
-                sets["reference"] = build(args.batch, args.steps, args.policy, args.seed)
-        except ImportError as e:  # tests/ or pytest absent: the current implementation only
-            skipped = f"reference not built: {e}"
-            print(skipped, flush=True)
     timed = {("current", c): b for c, b in copies.items()}
-    timed |= {(s, 0): b for s, b in sets.items() if s != "current"}
     calls = {(s, c, k): b for (s, c), built in timed.items() for k, b in built.items()}
     best_us = best_us_per_step(calls, args.repeats, args.steps)
     rows = {}
@@ -242,12 +223,6 @@ def main(argv: list[str] | None = None) -> dict:
             f"smc {built['smc']['compile_s']:.1f} s, hybrid {built['hybrid']['compile_s']:.1f} s",
             flush=True,
         )
-    if "reference" in rows:
-        cur, ref = rows["current"], rows["reference"]
-        rows["speedup_over_reference"] = {
-            k: ref[k]["us_per_step"] / cur[k]["us_per_step"] for k in ("plant", "smc", "hybrid")
-        }
-        print(f"speed-up over the reference: {rows['speedup_over_reference']}", flush=True)
     for k in OVER_SMC:
         if f"{k}_over_smc" in rows["current"]["ratios"]:
             print(f"{k} / smc: {rows['current']['ratios'][f'{k}_over_smc']:.2f}", flush=True)
@@ -270,7 +245,6 @@ def main(argv: list[str] | None = None) -> dict:
         },  # fmt: skip
         "method": "interleaved best-of-repeats of jit(vmap(scan)) per variant and build; median of --copies",
         "results": rows,
-        "skipped": skipped,
         "targets": {k: {"target": v, "value": ratios[k], "met": ratios[k] <= v} for k, v in TARGETS.items()},
     }
     name = f"step_{machine}_quick.json" if args.quick else f"step_{machine}.json"
