@@ -308,7 +308,7 @@ def main() -> None:
     for name in [c.strip() for c in args.controllers.split(",") if c.strip()]:
         try:
             ctrl = build_controller(name, ControllerOptions(policy=args.policy))
-        except Exception as e:  # e.g. hybrid not built yet: record and go on
+        except Exception as e:  # e.g. a policy that cannot be loaded: record and go on
             skipped[name] = f"{type(e).__name__}: {e}"
             print(f"{name}: skipped ({skipped[name]})", flush=True)
             continue
