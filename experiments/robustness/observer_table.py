@@ -1,0 +1,40 @@
+"""Print the observer table of the robustness README from the committed Monte Carlo summaries.
+
+    python experiments/robustness/observer_table.py
+
+Reads ``results/mc_observer_{clean,nogust,noise3}/summary.json`` (``harv-jax mc`` with the commands in the
+README) and prints, per controller and condition, recovered share, mean recovery time (not recovered at the
+run length), control TV and chatter index, and TV and chatter against the same controller's clean run.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+RESULTS = Path(__file__).parent / "results"
+CONDITIONS = (
+    ("clean", "mc_observer_clean"),
+    ("noise, delay, model, lag", "mc_observer_nogust"),
+    ("noise 3x", "mc_observer_noise3"),
+)
+
+
+def main() -> None:
+    runs = {label: json.loads((RESULTS / d / "summary.json").read_text()) for label, d in CONDITIONS}
+    clean = runs["clean"]["controllers"]
+    print("| controller | condition | recovered | mean (s) | TV (rad) | TV / clean | chatter / clean |")
+    print("|---|---|---:|---:|---:|---:|---:|")
+    for name, c0 in clean.items():
+        for label, _ in CONDITIONS:
+            c = runs[label]["controllers"][name]
+            tv, ch = c["control_tv"]["mean"], c["chatter_index"]["mean"]
+            rec, mean_s = 100 * c["recovery_rate"], c["t_recover_mean_nr_at_run_s"]
+            tv_ratio, ch_ratio = tv / c0["control_tv"]["mean"], ch / c0["chatter_index"]["mean"]
+            cells = (f"{rec:.1f}%", f"{mean_s:.2f}", f"{tv:.1f}", f"{tv_ratio:.2f}", f"{ch_ratio:.2f}")
+            row = (name, label, *cells)
+            print("| " + " | ".join(row) + " |")
+
+
+if __name__ == "__main__":
+    main()
