@@ -9,7 +9,9 @@ and ``policy.stablehlo`` of the best seed by final mean return, ``policy_seed<i>
 ``*.corrupt`` and named in a message); a run folder killed before its first checkpoint is restarted from
 period 0 with the configuration in its ``config.json``. A watchdog (``--watchdog-s``,
 :mod:`harv_jax.ppo.watchdog`) ends a stalled run with a one-line error and exit code 3; its checkpoints stay
-intact, so ``--resume`` continues it. The work is done by the recipe in :mod:`harv_jax.training`.
+intact, so ``--resume`` continues it. ``--demos FILE`` (or ``[ppo] demos``) adds behaviour cloning on
+demonstrations written by ``harv-jax optimal --save-demos`` (:mod:`harv_jax.training.demos`). The work is
+done by the recipe in :mod:`harv_jax.training`.
 """
 
 from __future__ import annotations
@@ -148,6 +150,10 @@ def run_train(
 
     check_run_flags(overrides.get("num_periods"), overrides.get("checkpoint_every"), watchdog_s)
     plan = None
+    if (overrides.get("demos") or "").strip():  # from the current directory, recorded absolute
+        from harv_jax.training.demos import resolve_demos_path
+
+        overrides = {**overrides, "demos": resolve_demos_path(overrides["demos"])}
     if resume is not None:
         given = ["--preset"] if preset is not None else []
         given += [ppo_config.flag_name(k) for k, v in sorted(overrides.items()) if v is not None]
@@ -192,12 +198,12 @@ def run_train(
 
     ppo_config.check_devices(cfg, len(sharding.default_devices()))
     fresh_init = init_policy if plan is None or not plan.from_checkpoint else None  # before --out is touched
-    setup = build_training(cfg, env_table, fresh_init)
+    setup = build_training(cfg, env_table, fresh_init, plan.demos_sha256 if plan is not None else None)
     env_params, trainer = setup.env_params, setup.trainer
     if resume is None:
         out_dir = prepare_out_dir(out, force)
         write_run_record(out_dir, preset or DEFAULT_PRESET, cfg, env_table, env_params, init_policy,
-                         target_recovery)  # fmt: skip
+                         target_recovery, setup.demos)  # fmt: skip
     hook, eval_desc = make_eval_hook(trainer, cfg, env_params, env_table, target_recovery, out_dir)
     n_periods = ppo_config.num_periods(cfg)
     total = n_periods * ppo_config.steps_per_period(cfg)
@@ -260,8 +266,11 @@ def run_train(
     if history:
         plot_training_curve(out_dir / "training_curve.png", history,
                             f"harv-jax train: {cfg.num_seeds} seed(s), {cfg.num_envs} envs")  # fmt: skip
-    best = outputs.export_policies(out_dir, result.state, result.trainer, cfg, history, loop)
+    demos = None if setup.demos is None else setup.demos.record()
+    best = outputs.export_policies(out_dir, result.state, result.trainer, cfg, history, loop, demos)
     summary = outputs.run_summary(out_dir, history, best, target_recovery)
+    if demos is not None:
+        summary["demos"] = demos
     outputs.write_summary(out_dir / "summary.json", summary)
     if "seeds" in summary:
         console.print(f"harv-jax: {outputs.seed_verdict(summary['seeds'])}", soft_wrap=True, markup=False,
@@ -350,12 +359,18 @@ def register(app: typer.Typer) -> None:
             help="Train with a controller in the loop: hybrid[:SCHEDULE] (default schedule gated) applies "
             "u = u_RL + zeta u_SMC inside the env step, the policy's action being u_RL. Default none.",
         ),
+        demos: str = typer.Option(
+            None,
+            help="Also clone these demonstrations (a .npz of harv-jax optimal --save-demos; its recovered "
+            "runs) with the preset's bc_coef schedule; overrides [ppo] demos. Default the preset's (none).",
+        ),
         aircraft_name: str | None = None,
     ) -> None:
         """Train PPO policies (several seeds at once) on the spin/upset recovery env."""
         overrides = {"total_steps": steps, "num_envs": num_envs, "unroll": unroll, "epochs": epochs,
                      "minibatches": minibatches, "lr": lr, "num_seeds": seeds, "seed": seed,
                      "num_periods": periods, "checkpoint_every": checkpoint_every}  # fmt: skip
+        overrides["demos"] = demos
         summary = run_train(
             preset,
             overrides,

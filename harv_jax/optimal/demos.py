@@ -17,14 +17,19 @@ plant steps of ``dt_s`` from engagement:
   controller on that run.
 
 The pair (``observations[:, t]``, ``actions[:, t]``) is what a policy would have had to output at step t
-to fly the demonstration.
+to fly the demonstration. ``harv-jax train --demos FILE`` (``harv_jax.training.demos``) reads this format
+with :func:`load_demos_with_digest` and clones the pairs of the recovered runs.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import io
 import os
 import tempfile
+import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +42,17 @@ _ALL_KEYS = (
     "format", "format_version", "dt_s", "reference_rad", *_TRAJ_KEYS, "t_recover_s", "recovered",
     "beats_best_controller",
 )  # fmt: skip
+#: What reading a damaged or foreign file can raise (np.load of a zip, a .npy, a pickle, random bytes).
+_READ_ERRORS = (
+    OSError,
+    ValueError,
+    EOFError,
+    KeyError,
+    AttributeError,
+    TypeError,
+    zipfile.BadZipFile,
+    zlib.error,
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -146,30 +162,48 @@ def _validate(d: dict, name: str) -> None:
             raise ValueError(f"demos {name!r}: {k} holds non-finite or non-float values")
     if np.any(np.abs(np.asarray(d["actions"])) > 1.0):
         raise ValueError(f"demos {name!r}: actions lie outside [-1, 1]")
-    dt = float(np.asarray(d["dt_s"]))
-    if not (np.isfinite(dt) and dt > 0):
-        raise ValueError(f"demos {name!r}: dt_s {dt} must be a positive number")
+    for k in ("recovered", "beats_best_controller"):
+        if np.asarray(d[k]).dtype != bool:
+            raise ValueError(f"demos {name!r}: {k} has dtype {np.asarray(d[k]).dtype}, expected bool")
+    dt = np.asarray(d["dt_s"])
+    if dt.shape != () or not np.issubdtype(dt.dtype, np.number) or not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"demos {name!r}: dt_s {dt!r} must be a positive number")
 
 
 def load_demos(path: str | Path) -> Demos:
     """Read and validate a demos file (``allow_pickle=False``); ValueError naming what is wrong."""
+    return load_demos_with_digest(path)[0]
+
+
+def load_demos_with_digest(path: str | Path) -> tuple[Demos, str]:
+    """(demos, SHA-256 hex digest of the file's bytes): the file is read once, then parsed from memory
+    (``allow_pickle=False``: loading never executes code) and validated; ValueError naming what is wrong."""
     name = str(path)
+    made_by = "give a file written by harv-jax optimal --save-demos"
     try:
-        with np.load(path, allow_pickle=False) as z:
-            d = {k: z[k] for k in z.files}
+        raw = Path(path).read_bytes()
     except FileNotFoundError:
-        raise ValueError(f"demos {name!r} does not exist") from None
-    except (OSError, ValueError) as e:
-        raise ValueError(f"demos {name!r} is not a pickle-free npz file ({e})") from None
+        raise ValueError(f"demos {name!r} does not exist; {made_by}") from None
+    except OSError as e:
+        raise ValueError(
+            f"demos {name!r} cannot be read ({e.strerror or type(e).__name__}); {made_by}"
+        ) from None
+    try:
+        with np.load(io.BytesIO(raw), allow_pickle=False) as z:
+            d = {k: z[k] for k in z.files}
+    except _READ_ERRORS as e:
+        why = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise ValueError(f"demos {name!r} is not a pickle-free npz file ({why}); {made_by}") from None
     missing = [k for k in _ALL_KEYS if k not in d]
     if missing:
-        raise ValueError(f"demos {name!r} lacks {', '.join(missing)}")
+        raise ValueError(f"demos {name!r} lacks {', '.join(missing)}; {made_by}")
     if str(d["format"]) != FORMAT_NAME:
         raise ValueError(f"demos {name!r}: format {str(d['format'])!r}, expected {FORMAT_NAME!r}")
     version = d["format_version"]
     if version.shape != () or not np.issubdtype(version.dtype, np.integer) or int(version) != FORMAT_VERSION:
         raise ValueError(f"demos {name!r}: format_version {version!r}, this reader reads {FORMAT_VERSION}")
     _validate(d, name)
-    return Demos(
+    demos = Demos(
         **{f.name: (float(d[f.name]) if f.name == "dt_s" else d[f.name]) for f in dataclasses.fields(Demos)}
     )
+    return demos, hashlib.sha256(raw).hexdigest()

@@ -54,6 +54,7 @@ class PPOConfig:
     bc_coef: float = 0.0  # weight of behaviour cloning toward a teacher's action at the start; 0: off
     bc_coef_end: float = 0.0  # its weight at the end of the run (linear in the update count in between)
     pg_start: float = 0.0  # fraction of the run before the policy-gradient term turns on (BC and critic only)
+    demos: str | None = None  # demonstrations (.npz) to clone with the bc_coef schedule; None: none
 
     def replace(self, **changes: Any) -> PPOConfig:
         """Copy with fields changed, validated."""
@@ -132,6 +133,14 @@ def validate(cfg: PPOConfig) -> PPOConfig:
         raise UsageError(
             f"--minibatches {cfg.minibatches} must divide num_envs * unroll = {cfg.num_envs * cfg.unroll}"
         )
+    if cfg.demos is not None:
+        if not isinstance(cfg.demos, str) or not cfg.demos.strip():
+            raise UsageError(f"--demos {cfg.demos!r} must be the path of a demonstrations .npz file")
+        if cfg.bc_coef <= 0 and cfg.bc_coef_end <= 0:
+            raise UsageError(
+                f"--demos {cfg.demos!r} is cloned with weight bc_coef, and bc_coef and bc_coef_end are 0; "
+                "set bc_coef > 0 in the preset's [ppo] table"
+            )
     check_seed(cfg.seed)
     check_train(cfg.total_steps, cfg.num_envs, cfg.unroll, cfg.num_seeds,
                 total_updates(cfg) * cfg.epochs * cfg.minibatches)  # fmt: skip
@@ -166,9 +175,11 @@ def from_dict(values: dict[str, Any], base: PPOConfig | None = None, source: str
 
 
 def to_dict(cfg: PPOConfig) -> dict[str, Any]:
-    """Plain JSON-able dict of the config."""
+    """Plain JSON-able dict of the config (``demos`` only when set)."""
     d = dataclasses.asdict(cfg)
     d["hidden_sizes"] = list(cfg.hidden_sizes)
+    if d["demos"] is None:
+        del d["demos"]
     return d
 
 

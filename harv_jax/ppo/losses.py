@@ -14,6 +14,8 @@ with ours when lambda = 1 and nothing is truncated (tested).
 
 from __future__ import annotations
 
+import functools
+import operator
 from typing import NamedTuple
 
 import jax
@@ -111,6 +113,25 @@ class PPOBatch(NamedTuple):
     teacher_action: jax.Array | None = None
 
 
+class DemoBatch(NamedTuple):
+    """A minibatch of demonstration pairs, leading axis [K].
+
+    Attributes:
+        obs: [K, O] the demonstrations' observations, normalised as the policy's input.
+        action: [K, A] the demonstrated actions in [-1, 1].
+    """
+
+    obs: jax.Array
+    action: jax.Array
+
+
+def behaviour_cloning(mean: jax.Array, target: jax.Array) -> jax.Array:
+    """``mean(sum(|clip(mu, -1, 1) - a|^2 + 0.01 |mu - a|^2))`` over [M, A] policy means ``mu`` and targets
+    ``a``, summed over action components (the small unclipped part keeps a gradient where mu is clipped)."""
+    err = jnp.clip(mean, -1.0, 1.0) - target
+    return jnp.mean(jnp.sum(jnp.square(err) + 0.01 * jnp.square(mean - target), axis=-1))
+
+
 def ppo_loss(
     params: PPOParams,
     batch: PPOBatch,
@@ -122,6 +143,7 @@ def ppo_loss(
     normalize_advantage: bool = True,
     bc_coef: jax.Array | float = 0.0,
     pg_on: jax.Array | float = 1.0,
+    demo: DemoBatch | None = None,
 ) -> tuple[jax.Array, dict[str, jax.Array]]:
     """Clipped-surrogate PPO loss with value loss and entropy bonus (SB3 / brax form), and optionally a
     behaviour-cloning term toward a teacher (DAPG-style).
@@ -129,10 +151,9 @@ def ppo_loss(
     ``loss = -pg_on * mean(min(rho A, clip(rho, 1-eps, 1+eps) A)) + vf_coef * 0.5 * mean((target - V)^2)
     - pg_on * ent_coef * mean(entropy) + bc_coef * BC``; with ``clip_value_eps`` the value error is the max
     of the unclipped and the clipped (``V_old + clip(V - V_old, +-eps)``) squared errors. Advantages are
-    standardised over the minibatch when ``normalize_advantage``. With ``batch.teacher_action`` ``BC`` is
-    ``mean(|clip(mu, -1, 1) - a_teacher|^2 + 0.01 |mu - a_teacher|^2)`` summed over action components, mu
-    the policy mean (the small unclipped part keeps a gradient where mu is clipped); without it there is no
-    BC term at all.
+    standardised over the minibatch when ``normalize_advantage``. ``BC`` is the sum of
+    :func:`behaviour_cloning` of the policy mean toward ``batch.teacher_action`` (if given) and of the policy
+    mean at ``demo.obs`` toward ``demo.action`` (if given); with neither there is no BC term at all.
 
     Args:
         params: actor and critic parameters.
@@ -143,8 +164,9 @@ def ppo_loss(
         ent_coef: entropy-bonus coefficient.
         clip_value_eps: value clip range (None: no value clipping).
         normalize_advantage: standardise advantages over the minibatch.
-        bc_coef: weight of the behaviour-cloning term (used only with ``batch.teacher_action``).
+        bc_coef: weight of the behaviour-cloning term (used only with ``batch.teacher_action`` or ``demo``).
         pg_on: factor on the policy-gradient and entropy terms (0: the actor learns from BC alone).
+        demo: demonstration pairs cloned besides the rollout's teacher labels (None: none).
 
     Returns:
         (scalar loss, metrics dict of scalars).
@@ -172,14 +194,18 @@ def ppo_loss(
         actor_loss = policy_loss + entropy_loss
     else:
         actor_loss = pg_on * (policy_loss + entropy_loss)
-    if batch.teacher_action is None:
+    bc_terms = {}
+    if batch.teacher_action is not None:
+        bc_terms["bc_loss"] = behaviour_cloning(mean, batch.teacher_action)
+    if demo is not None:
+        bc_terms["bc_demo_loss"] = behaviour_cloning(networks.policy(params, demo.obs)[0], demo.action)
+    if not bc_terms:
         total = actor_loss + value_loss
         extra = {}
     else:
-        err = jnp.clip(mean, -1.0, 1.0) - batch.teacher_action
-        bc = jnp.mean(jnp.sum(jnp.square(err) + 0.01 * jnp.square(mean - batch.teacher_action), axis=-1))
+        bc = functools.reduce(operator.add, bc_terms.values())
         total = actor_loss + value_loss + bc_coef * bc
-        extra = {"bc_loss": bc, "bc_coef": jnp.asarray(bc_coef, jnp.float32)}
+        extra = {**bc_terms, "bc_coef": jnp.asarray(bc_coef, jnp.float32)}
     metrics = {
         "total_loss": total,
         "policy_loss": policy_loss,

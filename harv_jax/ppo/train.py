@@ -20,6 +20,7 @@ episode start). It needs the env's time limit (``env.episode_steps`` or ``env.co
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from functools import partial
 from typing import Any, NamedTuple
 
 import jax
@@ -29,6 +30,7 @@ from flax import struct
 from jax.sharding import Mesh
 
 from harv_jax.ppo import config as ppo_config
+from harv_jax.ppo import demos as demos_lib
 from harv_jax.ppo import normalize as obs_norm
 from harv_jax.ppo import sharding, shuffle
 from harv_jax.ppo.acting import (
@@ -40,7 +42,7 @@ from harv_jax.ppo.acting import (
     episode_metric_names,
 )
 from harv_jax.ppo.config import PPOConfig
-from harv_jax.ppo.losses import PPOBatch, compute_gae, ppo_loss, successor_values
+from harv_jax.ppo.losses import DemoBatch, PPOBatch, compute_gae, ppo_loss, successor_values
 from harv_jax.ppo.networks import (
     PPONetworks,
     PPOParams,
@@ -131,6 +133,7 @@ def make_train(
     env_params: Any,
     devices: Sequence[jax.Device] | None = None,
     episode_metrics_fn: EpisodeMetricsFn | None = None,
+    demos: tuple[Any, Any] | None = None,
 ) -> Trainer:
     """Build the jitted init and period functions for ``env`` and ``cfg``.
 
@@ -143,6 +146,10 @@ def make_train(
             all accelerators, or one CPU device).
         episode_metrics_fn: one env's ``info`` -> dict of scalars, averaged over the episodes that end in a
             period and reported as ``episode/<name>`` (default :func:`default_episode_metrics`).
+        demos: (observations [M, O], actions [M, A] in [-1, 1]) demonstration pairs, raw as the env
+            observes (None: none). They are put on the devices once; every SGD step clones a minibatch of
+            them drawn with the learner's key, through the learner's observation normalizer, with the
+            ``bc_coef`` schedule (the BC term of :func:`~harv_jax.ppo.losses.ppo_loss`).
 
     Returns:
         A :class:`Trainer`.
@@ -163,8 +170,10 @@ def make_train(
     batch_sharding = sharding.batch_sharding(mesh)
 
     use_bc = cfg.bc_coef > 0 or cfg.bc_coef_end > 0
-    if use_bc and "teacher_action" not in env_info_keys(env, env_params):
-        raise ValueError("bc_coef > 0 needs an env whose step info has 'teacher_action' (a teacher env)")
+    use_teacher = use_bc and "teacher_action" in env_info_keys(env, env_params)
+    if use_bc and not use_teacher and demos is None:
+        raise ValueError("bc_coef > 0 needs an env whose info has 'teacher_action' (a teacher env) or demos")
+    demo_data = None if demos is None else demos_lib.check_demos(demos, obs_size, act_size, use_bc)
     n_updates = ppo_config.total_updates(cfg)
 
     def loss_schedule(update_step: jax.Array) -> dict[str, jax.Array]:
@@ -239,7 +248,7 @@ def make_train(
                 ep[f"info_{k}"] += jnp.sum(ended * ep_metrics[k])
             ep_ret = ep_ret * (1.0 - ended)
             ep_len = jnp.where(ended > 0, 0, ep_len)
-            teacher = info["teacher_action"].astype(jnp.float32) if use_bc else None
+            teacher = info["teacher_action"].astype(jnp.float32) if use_teacher else None
             transition = Rollout(obs_in, raw, log_prob, value, reward, term, trunc, final_value, obs, teacher)
             return (env_state, next_obs.astype(jnp.float32), ep_ret, ep_len, ep), transition
 
@@ -248,20 +257,25 @@ def make_train(
         state = state.replace(env_state=env_state, obs=obs, episode_return=ep_ret, episode_length=ep_len)
         return state, traj, ep
 
-    def sgd_step(carry: tuple, batch: PPOBatch, schedule: dict[str, jax.Array]) -> tuple[tuple, Metrics]:
+    def sgd_step(
+        carry: tuple, batches: tuple[PPOBatch, DemoBatch | None], schedule: dict[str, jax.Array]
+    ) -> tuple[tuple, Metrics]:
         params, opt_state = carry
+        batch, demo = batches
         batch = jax.tree.map(lambda x: jax.lax.with_sharding_constraint(x, batch_sharding), batch)
         grad_fn = jax.value_and_grad(ppo_loss, has_aux=True)
         (_, metrics), grads = grad_fn(
             params, batch, networks, clip_eps=cfg.clip_eps, vf_coef=cfg.vf_coef, ent_coef=cfg.ent_coef,
-            clip_value_eps=clip_value, normalize_advantage=cfg.normalize_advantage, **schedule,
+            clip_value_eps=clip_value, normalize_advantage=cfg.normalize_advantage, demo=demo, **schedule,
         )  # fmt: skip
         updates, opt_state = optimizer.update(grads, opt_state, params)
         params = optax.apply_updates(params, updates)
         metrics["grad_norm"] = optax.tree.norm(grads)
         return (params, opt_state), metrics
 
-    def update(state: TrainingState, env_params: Any) -> tuple[TrainingState, Metrics]:
+    def update(
+        state: TrainingState, env_params: Any, demo: DemoBatch | None = None
+    ) -> tuple[TrainingState, Metrics]:
         key, key_rollout, key_sgd = jax.random.split(state.key, 3)
         state, traj, ep = rollout(state, key_rollout, env_params)
         last_value = networks.value(state.params, normalise(state.normalizer, state.obs))
@@ -277,16 +291,23 @@ def make_train(
                         traj.teacher_action)  # fmt: skip
         schedule = loss_schedule(state.update_step)
         data = jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1).reshape((n_batch,) + x.shape[2:]), data)
+        demo_batches = None  # [epochs, minibatches, mb_size] pairs, normalised as the rollout's observations
+        if demo is not None:
+            shape = (cfg.epochs, cfg.minibatches, mb_size)
+            demo_batches = demos_lib.sample_minibatches(
+                key_sgd, demo, shape, partial(normalise, state.normalizer)
+            )
 
-        def epoch(carry: tuple, key: jax.Array) -> tuple[tuple, Metrics]:
+        def epoch(carry: tuple, xs: tuple[jax.Array, Any]) -> tuple[tuple, Metrics]:
+            key, demo_epoch = xs
             perm = shuffle.permutation(key, n_batch)  # = jax.random.permutation, faster
             shuffled = jax.tree.map(
                 lambda x: jnp.take(x, perm, axis=0).reshape((cfg.minibatches, mb_size) + x.shape[1:]), data
             )
-            return jax.lax.scan(lambda c, b: sgd_step(c, b, schedule), carry, shuffled)
+            return jax.lax.scan(lambda c, b: sgd_step(c, b, schedule), carry, (shuffled, demo_epoch))
 
         (params, opt_state), metrics = jax.lax.scan(
-            epoch, (state.params, state.opt_state), jax.random.split(key_sgd, cfg.epochs)
+            epoch, (state.params, state.opt_state), (jax.random.split(key_sgd, cfg.epochs), demo_batches)
         )
         normalizer = state.normalizer
         if cfg.normalize_observations:
@@ -304,8 +325,10 @@ def make_train(
         metrics["termination_rate"] = jnp.mean(traj.termination)
         return state, {**metrics, **{f"ep_{k}": v for k, v in ep.items()}}
 
-    def period_one(state: TrainingState, env_params: Any) -> tuple[TrainingState, Metrics]:
-        state, metrics = jax.lax.scan(lambda s, _: update(s, env_params), state, None,
+    def period_one(
+        state: TrainingState, env_params: Any, demo: DemoBatch | None = None
+    ) -> tuple[TrainingState, Metrics]:
+        state, metrics = jax.lax.scan(lambda s, _: update(s, env_params, demo), state, None,
                                       length=ppo_config.updates_per_period(cfg))  # fmt: skip
         out = {k: jnp.mean(v) for k, v in metrics.items() if not k.startswith("ep_")}
         ep = {k[3:]: jnp.sum(v) for k, v in metrics.items() if k.startswith("ep_")}
@@ -328,9 +351,11 @@ def make_train(
         params = networks.init_seeds(jax.vmap(lambda k: jax.random.split(k, 3)[0])(keys))
         return jax.vmap(init_one, in_axes=(0, 0, None))(keys, params, env_params)
 
-    def period_all(state: TrainingState, env_params: Any) -> tuple[TrainingState, Metrics]:
+    def period_all(
+        state: TrainingState, env_params: Any, demo: DemoBatch | None = None
+    ) -> tuple[TrainingState, Metrics]:
         traces[0] += 1  # Python side effect: runs only while tracing
-        return jax.vmap(period_one, in_axes=(0, None))(state, env_params)
+        return jax.vmap(period_one, in_axes=(0, None, None))(state, env_params, demo)
 
     # Shardings: env-axis leaves [S, N, ...] split over devices on axis 1; everything else replicated.
     replicated = sharding.replicated(mesh)
@@ -355,10 +380,12 @@ def make_train(
     )
     period = jax.jit(
         period_all,
-        in_shardings=(state_shardings, replicated),
+        in_shardings=(state_shardings, replicated, replicated)[: 2 if demo_data is None else 3],
         out_shardings=(state_shardings, replicated),
         donate_argnums=0,
     )
+    if demo_data is not None:
+        period = demos_lib.bind_demos(period, demo_data, replicated)
     return Trainer(init, period, networks, mesh, state_shardings, lambda: traces[0])
 
 

@@ -63,17 +63,26 @@ def _nanstat(fn: Callable[[np.ndarray], Any], v: np.ndarray) -> float:
 
 
 def export_seed_policies(
-    pdir: Path, state: TrainingState, trainer: Trainer, cfg: PPOConfig, env_steps: int, loop: str = "none"
+    pdir: Path,
+    state: TrainingState,
+    trainer: Trainer,
+    cfg: PPOConfig,
+    env_steps: int,
+    loop: str = "none",
+    demos: dict[str, Any] | None = None,
 ) -> list[Policy]:
     """Write ``pdir/policy_seed<i>.npz`` for every seed; returns the policies.
 
-    ``loop``: the loop the policies were trained in (``harv_jax.training.in_loop``), recorded in ``meta``.
+    ``loop``: the loop the policies were trained in (``harv_jax.training.in_loop``), recorded in ``meta``;
+    ``demos``: the demonstrations' record (path, SHA-256, runs), recorded in ``meta`` if given.
     """
     params, normalizer = jax.device_get((state.params, state.normalizer))
     pols = []
     for s in range(cfg.num_seeds):
         meta = {"seed": s, "config": ppo_config.to_dict(cfg), "env_steps": env_steps,
                 "normalize_observations": cfg.normalize_observations, "loop": loop}  # fmt: skip
+        if demos is not None:
+            meta["demos"] = demos
         pol = make_policy(select_seed(params, s), select_seed(normalizer, s), trainer.networks,
                           cfg.normalize_observations, meta)  # fmt: skip
         policy_api.export_npz(pdir / f"policy_seed{s}.npz", pol)
@@ -102,6 +111,7 @@ def export_policies(
     cfg: PPOConfig,
     history: list[dict[str, Any]],
     loop: str = "none",
+    demos: dict[str, Any] | None = None,
 ) -> int:
     """Write ``policy/policy_seed<i>.npz`` per seed and ``policy.npz``/``policy.stablehlo`` of the best.
 
@@ -111,7 +121,8 @@ def export_policies(
     """
     best = best_seed(history)
     pdir = out_dir / "policy"
-    pols = export_seed_policies(pdir, state, trainer, cfg, history[-1]["env_steps"] if history else 0, loop)
+    steps = history[-1]["env_steps"] if history else 0
+    pols = export_seed_policies(pdir, state, trainer, cfg, steps, loop, demos)
     policy_api.export_npz(pdir / "policy.npz", pols[best])
     if policy_api.export_available():  # jax.export serialization needs flatbuffers
         policy_api.export_stablehlo(pdir / "policy.stablehlo", pols[best])

@@ -4,7 +4,8 @@ A preset file has a ``[ppo]`` table (fields of :class:`~harv_jax.ppo.config.PPOC
 ``[env]`` table that is passed to the environment's config, and optional ``[reward]``, ``[randomization]``,
 ``[spin]`` and ``[eval]`` tables, returned nested inside the env settings (``harv_jax.env.settings``
 validates them). A preset is named by its file name without ``.toml`` (``smoke``, ``paper-partial``,
-``paper-full``, ``recovery``) or given as a path to a ``.toml`` file.
+``paper-full``, ``recovery``) or given as a path to a ``.toml`` file. A relative ``[ppo] demos`` path
+(:mod:`harv_jax.training.demos`) is taken from the preset file's folder.
 """
 
 from __future__ import annotations
@@ -78,6 +79,12 @@ def load_preset(name: str, check_env: bool = True) -> tuple[PPOConfig, dict[str,
     """
     path = _preset_file(name)
     cfg, tables = ppo_config.load_file(path, ("env", *NESTED_TABLES))
+    if (
+        cfg.demos is not None
+    ):  # a relative path is the preset folder's (a preset and its demos travel together)
+        from harv_jax.training.demos import resolve_demos_path
+
+        cfg = cfg.replace(demos=resolve_demos_path(cfg.demos, Path(str(path)).parent))
     env = dict(tables.get("env", {}))
     for table in NESTED_TABLES:  # stored inside the env settings (checkpoints keep them for --resume)
         if table in tables:

@@ -2,7 +2,8 @@
 
 A damaged newer checkpoint is skipped (named in a message; ``harv_jax.ppo.runner`` renames it
 ``*.corrupt``); a run folder killed before its first checkpoint is restarted from period 0 with the
-configuration in its ``config.json``.
+configuration in its ``config.json``. A run with demonstrations reads the recorded file again (its SHA-256
+must be the one in ``config.json``).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ class ResumePlan(NamedTuple):
     env_steps: int
     init_policy: str | None
     messages: tuple[str, ...]
+    demos_sha256: str | None = None
 
 
 def _checked_env(env_table: Any, source: str) -> dict[str, Any]:
@@ -58,7 +60,7 @@ def resume_plan(run_dir: Path) -> ResumePlan:
         messages.append(f"resuming from period {period} (env steps {steps:,}) of {choice.path}")
         cfg = ppo_config.from_dict(json.loads(choice.payload["config"]), source=choice.path.name)
         env_table = _checked_env(json.loads(choice.payload["env_config"]), choice.path.name)
-        return ResumePlan(cfg, env_table, True, period, steps, None, tuple(messages))
+        return ResumePlan(cfg, env_table, True, period, steps, None, tuple(messages), _demos_sha256(run_dir))
     record_path = run_dir / "config.json"
     if not record_path.is_file():
         raise UsageError(
@@ -81,4 +83,13 @@ def resume_plan(run_dir: Path) -> ResumePlan:
         ) from None
     msg = (f"no checkpoint in {ckpt_dir} (the run stopped before its first one): restarting it from "
            "period 0 with the configuration in its config.json")  # fmt: skip
-    return ResumePlan(cfg, env_table, False, 0, 0, init_policy, (msg,))
+    return ResumePlan(cfg, env_table, False, 0, 0, init_policy, (msg,), _demos_sha256(run_dir))
+
+
+def _demos_sha256(run_dir: Path) -> str | None:
+    """The SHA-256 of the demonstrations recorded in ``run_dir/config.json`` (None: none recorded)."""
+    try:
+        digest = json.loads((run_dir / "config.json").read_text())["demos"]["sha256"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return digest if isinstance(digest, str) else None

@@ -24,6 +24,7 @@ from harv_jax.ppo.networks import PPOParams
 from harv_jax.ppo.runner import check_init_policy
 from harv_jax.ppo.train import Trainer, make_train
 from harv_jax.task.spaces import ACTION_SIZE, OBSERVATION_SIZE
+from harv_jax.training.demos import RunDemos, load_run_demos
 from harv_jax.training.environment import make_harv_env
 from harv_jax.training.outputs import save_spin_bank
 from harv_jax.training.teacher import TEACHER_KEY
@@ -37,12 +38,14 @@ class TrainingSetup(NamedTuple):
         env_params: its traced parameters.
         trainer: ``make_train`` of env and config, with the HARV episode metrics.
         init_policy: (params, normalizer) every seed starts from, or None (random initialization).
+        demos: the demonstration set cloned besides (or instead of) a teacher, or None.
     """
 
     env: Env
     env_params: EnvParams
     trainer: Trainer
     init_policy: tuple[PPOParams, obs_norm.RunningStats] | None
+    demos: RunDemos | None = None
 
 
 def load_init_policy(
@@ -74,25 +77,32 @@ def check_init_sizes(spec: str, pol: Policy, cfg: PPOConfig) -> None:
 
 
 def build_training(
-    cfg: PPOConfig, env_table: dict[str, Any], init_policy: str | None = None
+    cfg: PPOConfig, env_table: dict[str, Any], init_policy: str | None = None, demos_sha256: str | None = None
 ) -> TrainingSetup:
-    """Env, env parameters and trainer of a run, and its initial policy (``init_policy``: a policy spec).
+    """Env, env parameters and trainer of a run, its initial policy (``init_policy``: a policy spec) and
+    its demonstrations (``cfg.demos``; ``demos_sha256``: the digest the file must have, on ``--resume``).
 
     Raises:
-        UsageError: a bad env setting or an initial policy that does not fit the run's networks.
+        UsageError: a bad env setting, an initial policy that does not fit the run's networks, or bad
+            demonstrations (:func:`~harv_jax.training.demos.load_run_demos`).
     """
     pol = None if init_policy is None else resolve_policy(init_policy)  # a bad file fails before the env
     if pol is not None:
         check_init_sizes(init_policy, pol, cfg)
-    if (cfg.bc_coef > 0 or cfg.bc_coef_end > 0) and env_table.get(TEACHER_KEY) is None:
+    if (cfg.bc_coef > 0 or cfg.bc_coef_end > 0) and env_table.get(TEACHER_KEY) is None and cfg.demos is None:
         raise UsageError(
             f"bc_coef {cfg.bc_coef:g} / bc_coef_end {cfg.bc_coef_end:g} clone a teacher, and this run has "
-            'none; set [env] teacher = "smc-brake" (or another model-based controller) or both to 0'
+            'none; set [env] teacher = "smc-brake" (or another model-based controller), give demonstrations '
+            "(--demos FILE) or set both to 0"
         )
+    demos = None
+    if cfg.demos is not None:  # before the env is built: bad demos fail fast
+        demos = load_run_demos(cfg.demos, OBSERVATION_SIZE, ACTION_SIZE, demos_sha256)
     env, env_params = make_harv_env(env_table)
-    trainer = make_train(env, cfg, env_params, episode_metrics_fn=harv_episode_metrics)
+    pairs = None if demos is None else (demos.observations, demos.actions)
+    trainer = make_train(env, cfg, env_params, episode_metrics_fn=harv_episode_metrics, demos=pairs)
     init = None if init_policy is None else load_init_policy(init_policy, trainer, cfg, env_params, pol)
-    return TrainingSetup(env, env_params, trainer, init)
+    return TrainingSetup(env, env_params, trainer, init, demos)
 
 
 def write_run_record(
@@ -103,11 +113,15 @@ def write_run_record(
     env_params: EnvParams,
     init_policy: str | None = None,
     target_recovery: float | None = None,
+    demos: RunDemos | None = None,
 ) -> None:
-    """Write ``config.json`` (preset, PPO config, env settings, initial policy, target) and the spin bank."""
+    """Write ``config.json`` (preset, PPO config, env settings, initial policy, target, demonstrations)
+    and the spin bank."""
     record: dict[str, Any] = {"preset": preset, "ppo": ppo_config.to_dict(cfg), "env": env_table}
     if init_policy is not None:
         record["init_policy"] = init_policy
+    if demos is not None:
+        record["demos"] = demos.record()
     if target_recovery is not None:
         record["target_recovery"] = target_recovery
     (out_dir / "config.json").write_text(json.dumps(record, indent=2))
