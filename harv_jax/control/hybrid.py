@@ -8,7 +8,8 @@ One step, for the wind state x and the reference y_ref:
    each deflection range (``safety.cap_authority``); u_RL = 0 in fallback;
 3. feedback term designed on the RL-compensated dynamics (``smc_command(..., u_offset_rad=u_RL)``):
    u_fb = (L_g L_f y)^-1 (nu - L_f^2 y - L_g L_f y u_RL), nu the SMC's (reaching law included);
-4. zeta from the schedule (``harv_jax.control.scheduling``; 1 in fallback);
+4. zeta from the schedule (``harv_jax.control.zeta_schedules``: one object per name, picked when the hybrid
+   is built; 1 in fallback);
 5. u = u_RL + zeta u_fb, then the position/rate box of the safety filter (``safety.filter_command``).
 
 The ``simplex`` schedule (Simplex architecture; the default) lets the policy act alone (zeta = 0) and hands
@@ -44,19 +45,15 @@ from flax import struct
 
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
-from harv_jax.control.gate import GateGains, certificate_holds, default_gate_gains, gate
+from harv_jax.control.gate import GateGains, certificate_holds, default_gate_gains
 from harv_jax.control.registry import DEFAULT_ZETA
 from harv_jax.control.safety import cap_authority, filter_command, limit_box
 from harv_jax.control.scheduling import (
-    SIMPLEX_REASONS,
     SimplexGains,
     SimplexState,
     ZetaState,
-    continuous_zeta,
-    hysteresis_step,
     simplex_fallback_gains,
     simplex_init,
-    simplex_step,
     zeta_init,
 )
 from harv_jax.control.smc import SMCConfig, SMCGains, default_gains, smc_command, update_integral
@@ -64,13 +61,9 @@ from harv_jax.control.supervisor import (
     SupervisorGains,
     SupervisorState,
     default_supervisor_gains,
-    outside_box,
-    record_intervention,
-    supervise,
     supervisor_init,
 )
-from harv_jax.dynamics.state import vt_fps
-from harv_jax.task.criteria import omega_norm_radps, tracking_errors
+from harv_jax.control.zeta_schedules import ZetaInputs, zeta_schedule
 from harv_jax.task.spaces import action_to_command, observation
 from harv_jax.task.spec import (
     RECOVERY_ALPHA_TOL_RAD,
@@ -80,7 +73,7 @@ from harv_jax.task.spec import (
     V_MIN_FPS,
 )
 
-ZetaSchedule = Literal["hysteresis", "continuous", "gated", "simplex", "always", "never"]
+ZetaScheduleName = Literal["hysteresis", "continuous", "gated", "simplex", "always", "never"]
 ZETA_SCHEDULES: tuple[str, ...] = ("hysteresis", "continuous", "gated", "simplex", "always", "never")
 
 
@@ -189,7 +182,7 @@ class HybridConfig:
         window_steps: length of the supervisor's intervention window, steps.
     """
 
-    schedule: ZetaSchedule = DEFAULT_ZETA
+    schedule: ZetaScheduleName = DEFAULT_ZETA
     smc: SMCConfig = SMCConfig()
     supervisor: bool = True
     window_steps: int = 100
@@ -252,6 +245,7 @@ def make_hybrid(
     cfg = HybridConfig() if cfg is None else cfg
     g = default_hybrid_gains() if gains is None else gains
     dt_s = cfg.smc.dt_s
+    sched = zeta_schedule(cfg.schedule, g, cfg.smc, cfg.supervisor)
 
     def init(params: AircraftParams) -> HybridState:
         dtype = jnp.result_type(params.mass_slug)
@@ -270,92 +264,55 @@ def make_hybrid(
     def apply(state: HybridState, x_wind: jnp.ndarray, reference_rad: jnp.ndarray, key: jax.Array):
         del key  # deterministic
         params = state.params
-        supervised = cfg.supervisor and cfg.schedule != "simplex"  # simplex: its own monitor
-        sup = supervise(state.supervisor, x_wind, g.supervisor, dt_s) if supervised else state.supervisor
-        fallback = sup.fallback
-
         a = jnp.clip(act(observation(x_wind, reference_rad)), -1.0, 1.0)
         u_rl_raw = action_to_command(a, params.u_min_rad, params.u_max_rad).astype(state.u_prev_rad.dtype)
         u_rl, cap_active = cap_authority(u_rl_raw, params, g.authority_frac)
-        smc_g = g.simplex.fallback_smc if cfg.schedule == "simplex" else g.smc
-        simplex = state.simplex
-        if cfg.schedule == "simplex":  # decided before u_fb: once latched the SMC flies without the policy
-            simplex = simplex_step(
-                simplex, outside_box(x_wind, g.simplex.box_low, g.simplex.box_high),
-                tracking_errors(x_wind, reference_rad), jnp.all(jnp.isfinite(u_rl)), g.simplex, dt_s,
-                vt_fps(x_wind), omega_norm_radps(x_wind),
-            )  # fmt: skip
-            fallback = fallback | simplex.latched
+        # decided before u_fb: in fallback the SMC flies without the policy
+        watch = sched.watch(state.supervisor, state.simplex, x_wind, reference_rad, u_rl)
+        fallback = watch.fallback
         u_rl = jnp.where(fallback, 0.0, u_rl)
 
+        smc_g = sched.smc_gains
         u_fb, terms = smc_command(
             x_wind, reference_rad, state.integral_rad_s, params, smc_g, cfg.smc, u_offset_rad=u_rl
         )
-        zstate, switched = state.zeta, jnp.asarray(False)  # the tube's state moves only under hysteresis
         box_lo, box_hi = limit_box(state.u_prev_rad, params, dt_s)
         mu_blended = jnp.stack([jnp.asarray(False), jnp.asarray(False), terms.w_mu < 1.0])
-        if cfg.schedule == "gated":
-            gated = gate(
-                u_rl, u_fb, terms.decoupling, terms.s, box_lo, box_hi, g.smc, g.gate,
-                cfg.smc.switching, dt_s, mu_blended, fallback | terms.solve.guard_active,
-                state.zeta_gate - g.gate.release_per_s * dt_s,
-            )  # fmt: skip
-            zeta = gated.zeta
-        elif cfg.schedule == "hysteresis":
-            zstate, switched = hysteresis_step(
-                state.zeta, terms.e, g.e_on_rad, g.e_off_rad, g.zeta_min_dwell_s, dt_s
-            )
-            zeta = g.zeta_floor + (1.0 - g.zeta_floor) * zstate.on.astype(u_fb.dtype)
-        elif cfg.schedule == "continuous":
-            zeta = g.zeta_floor + (1.0 - g.zeta_floor) * continuous_zeta(terms.e, g.e_on_rad, g.e_off_rad)
-        elif cfg.schedule == "simplex":
-            zeta = jnp.zeros((), u_fb.dtype)  # 1 once latched (fallback below)
-        elif cfg.schedule == "always":
-            zeta = jnp.ones((), u_fb.dtype)
-        else:
-            zeta = jnp.zeros((), u_fb.dtype)
-        zeta = jnp.where(fallback, 1.0, zeta)
-        zeta_ch = jnp.broadcast_to(zeta, (3,)).astype(u_fb.dtype)
+        z = sched.weigh(
+            ZetaInputs(terms, u_rl, u_fb, box_lo, box_hi, mu_blended, fallback, state.zeta_gate, state.zeta)
+        )
 
-        u_raw = gated.u_raw_rad if cfg.schedule == "gated" else u_rl + zeta * u_fb
-        u_raw = jnp.where(jnp.all(jnp.isfinite(u_raw)), u_raw, state.u_prev_rad)
+        u_raw = jnp.where(jnp.all(jnp.isfinite(z.u_raw_rad)), z.u_raw_rad, state.u_prev_rad)
         u, limit_active = filter_command(u_raw, state.u_prev_rad, params, dt_s)
         saturated = jnp.any(jnp.clip(u_raw, params.u_min_rad, params.u_max_rad) != u_raw)
-        integral_on = jnp.asarray(True) if cfg.schedule == "gated" else zeta > 0
-        integral = update_integral(state.integral_rad_s, terms, saturated, smc_g, cfg.smc, integral_on)
+        integral = update_integral(state.integral_rad_s, terms, saturated, smc_g, cfg.smc, z.integral_on)
 
-        # the certificate of the command that acts, on the controller model (any schedule); simplex: for the
-        # fallback SMC's own reaching law (its eps and boundary layer), the one that acts after a hand-over
-        cert_gate = default_gate_gains(smc_g) if cfg.schedule == "simplex" else g.gate
+        # the certificate of the command that acts, on the controller model (any schedule)
         holds = certificate_holds(
-            terms.decoupling, u, u_rl + u_fb, terms.s, smc_g, cert_gate, cfg.smc.switching, dt_s
+            terms.decoupling, u, u_rl + u_fb, terms.s, smc_g, sched.gate_gains, cfg.smc.switching, dt_s
         )
         defined = ~terms.solve.guard_active & ~mu_blended & jnp.all(jnp.isfinite(terms.s))
         boxed = jnp.any(limit_active)
 
-        # interventions attributable to the learned command: its cap, or the box while it contributes (gated:
-        # only where it acts alone, zeta_i = 0; elsewhere the gate already chose zeta against the box)
-        rl_active = ~fallback & ((zeta_ch == 0.0) if cfg.schedule == "gated" else (zeta_ch < 1.0))
+        # interventions attributable to the learned command: its cap, or the box while it contributes
         cap_counted = cap_active & ~fallback
-        limit_counted = limit_active & rl_active
-        chan = cap_counted | limit_counted
+        chan = cap_counted | (limit_active & ~fallback & z.rl_acting)
         intervened = jnp.any(chan)
-        if cfg.schedule != "simplex":  # the simplex monitor reads no intervention window
-            sup = record_intervention(sup, intervened)
+        sup = sched.record(watch.supervisor, intervened)
 
         new_state = state.replace(
             integral_rad_s=integral,
             u_prev_rad=u,
-            zeta=zstate,
-            zeta_gate=zeta_ch,
+            zeta=z.zeta_state,
+            zeta_gate=z.zeta,
             supervisor=sup,
-            simplex=simplex,
+            simplex=watch.simplex,
             interventions=state.interventions + chan.astype(jnp.int32),
         )
         info = {
-            "zeta": jnp.mean(zeta_ch),
-            "zeta_channels": zeta_ch,
-            "zeta_switched": switched,
+            "zeta": jnp.mean(z.zeta),
+            "zeta_channels": z.zeta,
+            "zeta_switched": z.switched,
             "policy_unmodified": ~fallback & jnp.all(u == u_rl_raw),
             "correction_rad": jnp.abs(u - u_rl),
             "fallback": sup.fallback,
@@ -377,9 +334,8 @@ def make_hybrid(
             "cert_free_holds": defined & ~boxed & holds,
             "cert_sat_defined": defined & boxed,
             "cert_sat_holds": defined & boxed & holds,
+            **sched.info(watch.simplex),
         }
-        if cfg.schedule == "simplex":
-            info.update({f"handover_{r}": simplex.reason == i for i, r in enumerate(SIMPLEX_REASONS) if i})
         return u, new_state, info
 
     return Controller(init=init, apply=apply)
