@@ -127,7 +127,16 @@ def _toy_demos(n: int = 256) -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_training_from_demos_alone_clones_them_is_reproducible_and_recorded(tmp_path):
-    cfg = dataclasses.replace(CFG, total_steps=32 * 16 * 8, num_periods=2, bc_coef=1.0, bc_coef_end=1.0)
+    cfg = dataclasses.replace(
+        CFG,
+        total_steps=16 * 8 * 6,
+        num_envs=16,
+        unroll=8,
+        minibatches=2,
+        num_periods=2,
+        bc_coef=1.0,
+        bc_coef_end=1.0,
+    )
     demos = _toy_demos()
     trainer = make_train(ToyEnv(), cfg, TOY_PARAMS, demos=demos)
     runs = [
