@@ -301,3 +301,22 @@ def test_demos_without_behaviour_cloning_is_refused(tmp_path, monkeypatch, capsy
     code, _, err = cli_run(monkeypatch, capsys, "train", *args)
     assert code == 2 and err.count("\n") == 1 and "bc_coef and bc_coef_end are 0" in err, err
     assert not (tmp_path / "run").exists()
+
+
+def test_resume_refuses_demos_that_changed_since_the_run_started(tmp_path, monkeypatch, capsys):
+    from harv_jax.ppo import config as ppo_config
+    from harv_jax.training.presets import load_preset
+
+    demos = write_demos(tmp_path / "d.npz")
+    cfg, env = load_preset(str(smoke_preset(tmp_path)))
+    record = {
+        "preset": "smoke",
+        "ppo": ppo_config.to_dict(cfg.replace(demos=str(demos))),
+        "env": env,
+        "demos": {"path": str(demos), "sha256": "0" * 64, "runs": 1, "runs_in_file": 2, "pairs": 5},
+    }
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "config.json").write_text(json.dumps(record))
+    code, _, err = cli_run(monkeypatch, capsys, "train", "--resume", run)
+    assert code == 2 and err.count("\n") == 1 and "changed since the run started" in err, err
