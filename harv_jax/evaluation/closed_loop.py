@@ -283,7 +283,13 @@ def score(
     """
     x_all = jnp.concatenate([res.traj.x_wind, res.x_final_wind[None]], axis=0)
     m = compute_metrics(
-        x_all, res.traj.delta_rad, jnp.asarray(reference_rad, x_all.dtype), params, dt_s,
-        res.nonfinite, criterion, envelope,
-    )  # fmt: skip
+        x_all,
+        res.traj.delta_rad,
+        jnp.asarray(reference_rad, x_all.dtype),
+        params,
+        dt_s,
+        res.nonfinite,
+        criterion,
+        envelope,
+    )
     return m, x_all

@@ -30,8 +30,18 @@ if TYPE_CHECKING:
 
 #: Fixed upset state of the second scenario (wind axes; ft/s, rad, rad/s, ft): a nose-high (alpha 46 deg),
 #: rolling, yawing, banked upset inside the paper's reset bounds.
-FIXED_STATE = {"V": 600.0, "alpha": 0.8, "beta": 0.15, "p": 1.0, "q": 0.4, "r": 0.4, "mu": 0.6,
-               "gamma": 0.3, "chi": 0.0, "h": H0_FT}  # fmt: skip
+FIXED_STATE = {
+    "V": 600.0,
+    "alpha": 0.8,
+    "beta": 0.15,
+    "p": 1.0,
+    "q": 0.4,
+    "r": 0.4,
+    "mu": 0.6,
+    "gamma": 0.3,
+    "chi": 0.0,
+    "h": H0_FT,
+}
 OMEGA_SETTLE_RADPS = 0.17
 
 
@@ -173,12 +183,19 @@ def compare(
                 f"{fmt_num(rows[-1]['recovery_time_s'], unit='s', missing='- (not recovered)')}"
             )
     settings = {
-        "controllers": controllers, "policy": controllers_setting(controllers, policy, zeta)["policy"],
-        "zeta_schedule": zeta, "h0_ft": h0_ft,
-        "target_alpha_rad": target_alpha_rad, "duration_s": duration_s, "spin_s": spin_s, "seed": seed,
-        "dt_s": DT_S, "fixed_state": fixed_state,
-        "disturbances": (disturbances or DisturbanceSpec()).as_dict(), "aircraft": aircraft_name,
-    }  # fmt: skip
+        "controllers": controllers,
+        "policy": controllers_setting(controllers, policy, zeta)["policy"],
+        "zeta_schedule": zeta,
+        "h0_ft": h0_ft,
+        "target_alpha_rad": target_alpha_rad,
+        "duration_s": duration_s,
+        "spin_s": spin_s,
+        "seed": seed,
+        "dt_s": DT_S,
+        "fixed_state": fixed_state,
+        "disturbances": (disturbances or DisturbanceSpec()).as_dict(),
+        "aircraft": aircraft_name,
+    }
     vs_smc = add_vs_smc(rows, duration_s)
     return Comparison(flights, rows, certificates, h0_ft, settings, vs_smc)
 
@@ -219,9 +236,13 @@ def write_tables(
             f"\nAgainst smc over the {first['runs']} scenarios (recovery times with a flight that does "
             f"not recover at the run length, {first['run_length_s']:g} s): the share of scenarios recovered "
             f"faster / slower than smc by more than {first['margin_s']:g} s and the mean time over smc's.\n\n"
-            "| controller | " + " | ".join(cols) + " |\n|" + "---|" * (len(cols) + 1) + "\n"
+            "| controller | "
+            + " | ".join(cols)
+            + " |\n|"
+            + "---|" * (len(cols) + 1)
+            + "\n"
             + "".join(f"| {c} | " + " | ".join(_fmt(v[k]) for k in cols) + " |\n" for c, v in vs_smc.items())
-        )  # fmt: skip
+        )
     (out_dir / "compare_metrics.md").write_text("\n".join(lines) + "\n" + notes)
 
 
@@ -247,12 +268,15 @@ def write_comparison(out_dir: Path, comp: Comparison, command: str) -> None:
             if res.hybrid is not None:
                 plot_hybrid(res.t_s, res.hybrid, out_dir / f"{scen}_hybrid.png", t_engage, res.u_cmd_rad)
         plot_time_histories(
-            res.t_s, runs, out_dir / f"{scen}_trajectories.png",
+            res.t_s,
+            runs,
+            out_dir / f"{scen}_trajectories.png",
             title=f"{scen}: {' vs '.join(flights)} (alpha_d = {np.degrees(target_alpha):.1f} deg"
-            + (f", policy {policy_name}" if learned else "") + ")",
+            + (f", policy {policy_name}" if learned else "")
+            + ")",
             references={"alpha": target_alpha, "beta": 0.0, "mu": 0.0},
             t_marker_s=t_engage if t_engage else None,
-        )  # fmt: skip
+        )
     h0_ft = comp.h0_ft
     zeta, spin_s = s["zeta_schedule"], s["spin_s"]
     setting = (

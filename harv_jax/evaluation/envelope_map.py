@@ -72,9 +72,17 @@ GRID_AXES: dict[str, GridAxis] = {
 
 #: Initial-state components off the grid (see the module docstring), wind-state units.
 DEFAULT_FIXED_STATE: dict[str, float] = {
-    "V": 800.0, "alpha": 0.436, "beta": 0.0, "p": 0.0, "q": 0.0, "r": 0.0,
-    "mu": 0.0, "gamma": 0.0, "chi": 0.0, "h": H0_FT,
-}  # fmt: skip
+    "V": 800.0,
+    "alpha": 0.436,
+    "beta": 0.0,
+    "p": 0.0,
+    "q": 0.0,
+    "r": 0.0,
+    "mu": 0.0,
+    "gamma": 0.0,
+    "chi": 0.0,
+    "h": H0_FT,
+}
 
 
 @dataclasses.dataclass(frozen=True)

@@ -83,9 +83,18 @@ def envelope_study(
         drawn = sample_mc_inputs(jax.random.key(seed), grid.n_runs, nominal, disturbances=spec)
         inputs = drawn.replace(x0_wind=inputs.x0_wind, keys=inputs.keys)
     doc = envelope_summary(
-        controllers, policy, zeta, grid_description(grid), grid.n_runs, target_alpha_rad, n_steps * DT_S,
-        DT_S, seed, [str(d) for d in jax.local_devices()], command,
-    )  # fmt: skip
+        controllers,
+        policy,
+        zeta,
+        grid_description(grid),
+        grid.n_runs,
+        target_alpha_rad,
+        n_steps * DT_S,
+        DT_S,
+        seed,
+        [str(d) for d in jax.local_devices()],
+        command,
+    )
     doc["disturbances"] = spec.as_dict()
     doc["aircraft"] = aircraft_name
     maps = {}
@@ -106,9 +115,21 @@ def write_grid_csv(path: Path, grid: EnvelopeGrid, maps: dict[str, EnvelopeMap])
     from harv_jax.task.criteria import OUTCOME_NAMES
 
     xs, ys = grid.x_values, grid.y_values
-    header = ["controller", "ix", "iy", grid.x_name, grid.y_name, "outcome", "recovered", "t_recover_s",
-              "t_recover_alpha_s", "altitude_loss_ft", "terminal_alpha_err_deg", "terminal_beta_err_deg",
-              "terminal_mu_err_deg"]  # fmt: skip
+    header = [
+        "controller",
+        "ix",
+        "iy",
+        grid.x_name,
+        grid.y_name,
+        "outcome",
+        "recovered",
+        "t_recover_s",
+        "t_recover_alpha_s",
+        "altitude_loss_ft",
+        "terminal_alpha_err_deg",
+        "terminal_beta_err_deg",
+        "terminal_mu_err_deg",
+    ]
     with path.open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(header)
@@ -129,7 +150,7 @@ def write_grid_csv(path: Path, grid: EnvelopeGrid, maps: dict[str, EnvelopeMap])
                             f"{m.t_recover_alpha_s[iy, ix]:.4g}",
                             f"{m.altitude_loss_ft[iy, ix]:.5g}",
                             *[f"{v:.5g}" for v in term[iy, ix]],
-                        ]  # fmt: skip
+                        ]
                     )
 
 
@@ -147,17 +168,26 @@ def write_envelope(out_dir: Path, study: EnvelopeStudy) -> None:
     x_label, y_label = f"{grid.x_name} [{ax_x.display_unit}]", f"{grid.y_name} [{ax_y.display_unit}]"
     fixed = ", ".join(f"{k}0={v:g}" for k, v in doc["grid"]["fixed_state"].items() if v != 0.0) + ", others 0"
     plot_outcome_maps(
-        x_disp, y_disp, {n: m.outcome for n, m in maps.items()}, OUTCOME_NAMES, x_label, y_label,
+        x_disp,
+        y_disp,
+        {n: m.outcome for n, m in maps.items()},
+        OUTCOME_NAMES,
+        x_label,
+        y_label,
         out_dir / "envelope_recovery.png",
         title=f"recovery outcome after {duration_s:g} s, alpha_d = {alpha_deg:.1f} deg\n(fixed: {fixed})",
         duration_s=duration_s,
-    )  # fmt: skip
+    )
     plot_time_maps(
-        x_disp, y_disp, {n: m.t_recover_s for n, m in maps.items()}, x_label, y_label,
+        x_disp,
+        y_disp,
+        {n: m.t_recover_s for n, m in maps.items()},
+        x_label,
+        y_label,
         out_dir / "envelope_time.png",
         title=f"recovery time (grey: not recovered by {duration_s:g} s), alpha_d = "
         f"{alpha_deg:.1f} deg\n(fixed: {fixed})",
-    )  # fmt: skip
+    )
     arrays = {"x_values": grid.x_values, "y_values": grid.y_values, "x0_wind": grid_states(grid)}
     for name, m in maps.items():
         arrays.update({f"{name}/{field}": np.asarray(v) for field, v in m._asdict().items()})

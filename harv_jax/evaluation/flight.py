@@ -77,9 +77,19 @@ def _runner(controller_name: str, options: ControllerOptions, n_steps: int, max_
         params, x0_body, delta0, reference, key, model_params=None, disturbance=None, disturbance_key=None
     ):
         return evaluate(
-            controller, params, x0_body, reference, key, n_steps, DT_S, delta0, disturbance=disturbance,
-            disturbance_key=disturbance_key, max_delay_steps=max_delay_steps, model_params=model_params,
-        )  # fmt: skip
+            controller,
+            params,
+            x0_body,
+            reference,
+            key,
+            n_steps,
+            DT_S,
+            delta0,
+            disturbance=disturbance,
+            disturbance_key=disturbance_key,
+            max_delay_steps=max_delay_steps,
+            model_params=model_params,
+        )
 
     return run
 
@@ -105,9 +115,11 @@ def _certificate(info: dict, traj: Any, params: Any, switching: str, n_run: int)
     z = info["zeta"] if "zeta" in info else np.ones(n_run)
     args = (info["s"], z, info["w_mu"], g.k_reach, g.eps_radps2, g.phi_radps, DT_S, switching)
     free = unsaturated_steps(
-        np.asarray(traj.delta_rad), np.asarray(params.u_min_rad), np.asarray(params.u_max_rad),
+        np.asarray(traj.delta_rad),
+        np.asarray(params.u_min_rad),
+        np.asarray(params.u_max_rad),
         np.asarray(params.u_rate_max_radps) * DT_S,
-    )  # fmt: skip
+    )
     return {
         "all_steps": empirical_certificate(*args),
         "unsaturated_steps": empirical_certificate(*args, valid=free),
@@ -186,8 +198,11 @@ def fly(
             lambda a: a[0], sample_mc_inputs(jax.random.key(seed), 1, params, disturbances=spec)
         )
         params = run0.params
-        extra = {"model_params": run0.model_params, "disturbance": run0.disturbance,
-                 "disturbance_key": run0.disturbance_keys}  # fmt: skip
+        extra = {
+            "model_params": run0.model_params,
+            "disturbance": run0.disturbance,
+            "disturbance_key": run0.disturbance_keys,
+        }
     runner = _runner(controller, options, n_steps, spec.delay_steps)
     m, traj = runner(params, body0, delta0, reference, key_ctrl, **extra)
     n_pre = pre_x.shape[0]
@@ -199,8 +214,9 @@ def fly(
         info.setdefault(k, np.full((n_run, 3), np.nan))
     hybrid = None
     if set(HYBRID_INFO) <= info.keys():
-        hybrid = {k: np.concatenate([np.full((n_pre,) + info[k].shape[1:], np.nan), info[k]])
-                  for k in HYBRID_INFO}  # fmt: skip
+        hybrid = {
+            k: np.concatenate([np.full((n_pre,) + info[k].shape[1:], np.nan), info[k]]) for k in HYBRID_INFO
+        }
     return FlightResult(
         t_s=np.arange(n_pre + n_steps) * DT_S,
         x_wind=np.concatenate([pre_x, np.asarray(traj.x_wind)]),
@@ -242,9 +258,13 @@ def write_flight(out_dir: Path, res: FlightResult, settings: dict[str, Any]) -> 
         cols_out += [hy["zeta"], hy["fallback"], hy["u_rl_rad"], hy["u_fb_rad"]]
         plot_hybrid(t, hy, out_dir / "hybrid.png", res.t_engage_s, res.u_cmd_rad)
     np.savetxt(
-        out_dir / "trajectory.csv", np.column_stack(cols_out), delimiter=",", header=",".join(names),
-        comments="", fmt="%.8g",
-    )  # fmt: skip
+        out_dir / "trajectory.csv",
+        np.column_stack(cols_out),
+        delimiter=",",
+        header=",".join(names),
+        comments="",
+        fmt="%.8g",
+    )
     cols = {n: res.x_wind[:, i] for i, n in enumerate(WIND_STATE_NAMES)}
     cols.update({n: res.delta_rad[:, i] for i, n in enumerate(CONTROL_NAMES)})
     ref = settings["reference_rad"]

@@ -98,9 +98,19 @@ def monte_carlo(
     aircraft_name, nominal = resolve_aircraft(aircraft)
     inputs = sample_mc_inputs(jax.random.key(seed), runs, nominal, h0_ft=H0_FT, disturbances=spec)
     summary = mc_summary(
-        controllers, policy, zeta, runs, target_alpha_rad, n_steps * DT_S, seed, randomize, DT_S, H0_FT,
-        [str(d) for d in jax.local_devices()], command,
-    )  # fmt: skip
+        controllers,
+        policy,
+        zeta,
+        runs,
+        target_alpha_rad,
+        n_steps * DT_S,
+        seed,
+        randomize,
+        DT_S,
+        H0_FT,
+        [str(d) for d in jax.local_devices()],
+        command,
+    )
     summary["disturbances"] = spec.as_dict()
     summary["aircraft"] = aircraft_name
     if spec.active:
@@ -145,11 +155,23 @@ def write_runs_csv(
     from harv_jax.dynamics import WIND_STATE_NAMES
     from harv_jax.task.criteria import OUTCOME_NAMES
 
-    header = ["controller", "run"] + [f"{n}0" for n in WIND_STATE_NAMES] + [
-        "outcome", "recovered", "t_recover_s", "terminal_alpha_err_deg", "terminal_beta_err_deg",
-        "terminal_mu_err_deg", "altitude_loss_ft", "control_tv_rad", "chatter_index_rad2",
-        "sat_position_fraction", "left_envelope",
-    ]  # fmt: skip
+    header = (
+        ["controller", "run"]
+        + [f"{n}0" for n in WIND_STATE_NAMES]
+        + [
+            "outcome",
+            "recovered",
+            "t_recover_s",
+            "terminal_alpha_err_deg",
+            "terminal_beta_err_deg",
+            "terminal_mu_err_deg",
+            "altitude_loss_ft",
+            "control_tv_rad",
+            "chatter_index_rad2",
+            "sat_position_fraction",
+            "left_envelope",
+        ]
+    )
     extra: list[str] = []
     if disturbances is not None and disturbances.active:
         header += ["noise_scale", "delay_ms", "gust_fps", "model_error", "actuator_lag_s"]
@@ -206,11 +228,22 @@ def write_monte_carlo(out_dir: Path, study: MonteCarloStudy, save_trajectories: 
     alpha_deg = np.degrees(s["target_alpha_rad"])
     setting = f"N = {s['runs']}, alpha_d = {alpha_deg:.1f} deg, h0 = {s['h0_ft']:,.0f} ft"
     for name, h in histories.items():
-        plot_mc_bands(t_rec, h, ref, out_dir / f"bands_{name}.png",
-                      title=f"{name}: Monte Carlo bands ({setting})", ylims_deg=lims)  # fmt: skip
+        plot_mc_bands(
+            t_rec,
+            h,
+            ref,
+            out_dir / f"bands_{name}.png",
+            title=f"{name}: Monte Carlo bands ({setting})",
+            ylims_deg=lims,
+        )
     if len(histories) > 1:
-        plot_mc_bands_overlay(t_rec, histories, ref, out_dir / "bands_all.png",
-                              title=f"{', '.join(histories)}: Monte Carlo bands ({setting})")  # fmt: skip
+        plot_mc_bands_overlay(
+            t_rec,
+            histories,
+            ref,
+            out_dir / "bands_all.png",
+            title=f"{', '.join(histories)}: Monte Carlo bands ({setting})",
+        )
     plot_terminal_errors(
         {n: np.degrees(o.terminal_error_rad) for n, o in outs.items()}, out_dir / "terminal_errors.png"
     )

@@ -140,10 +140,16 @@ def robustness_sweep(
     reference = jnp.array([target_alpha_rad, 0.0, 0.0])
     cache: dict = {}
     doc: dict[str, Any] = {
-        "runs": runs, "seed": seed, "duration_s": run_s, "target_alpha_rad": target_alpha_rad,
-        "margin_recovery": MARGIN_RECOVERY, "controllers": list(controllers), "disturbances": {},
-        "devices": [str(d) for d in jax.local_devices()], "aircraft": aircraft_name,
-    }  # fmt: skip
+        "runs": runs,
+        "seed": seed,
+        "duration_s": run_s,
+        "target_alpha_rad": target_alpha_rad,
+        "margin_recovery": MARGIN_RECOVERY,
+        "controllers": list(controllers),
+        "disturbances": {},
+        "devices": [str(d) for d in jax.local_devices()],
+        "aircraft": aircraft_name,
+    }
     for name, lv in levels.items():
         rows: dict[str, list[dict[str, Any]]] = {c: [] for c in controllers}
         for level in lv:

@@ -51,8 +51,12 @@ def iqm_ci(values: Sequence[float], reps: int = BOOTSTRAP_REPS, seed: int = 0) -
         )
     finally:
         np.random.set_state(np_state)
-    return {"iqm": float(point["x"][0]), "ci_low": float(ci["x"][0, 0]), "ci_high": float(ci["x"][1, 0]),
-            "n": int(v.size)}  # fmt: skip
+    return {
+        "iqm": float(point["x"][0]),
+        "ci_low": float(ci["x"][0, 0]),
+        "ci_high": float(ci["x"][1, 0]),
+        "n": int(v.size),
+    }
 
 
 def seed_table(per_seed: dict[str, Sequence[float]], bar: float = SEED_RECOVERY_BAR) -> dict[str, Any]:

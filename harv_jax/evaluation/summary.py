@@ -9,8 +9,10 @@
   run's :func:`metrics_to_dict`);
 - ``compare.json`` / ``compare_metrics.csv`` of ``harv-jax compare``: rows with :data:`COMPARE_COLUMNS`.
 
-The report's tables (label, key path, format) are the ``*_ROWS`` below, next to the keys they read. One
-name per quantity: the fraction of runs recovered is ``recovery_rate`` (:data:`RECOVERY_RATE`) everywhere.
+The top level of each document (its settings; the compare columns) is built in ``summary_documents`` and
+re-exported here. The report's tables (label, key path, format) are the ``*_ROWS`` below, next to the keys
+they read. One name per quantity: the fraction of runs recovered is ``recovery_rate``
+(:data:`RECOVERY_RATE`) everywhere.
 """
 
 from __future__ import annotations
@@ -23,6 +25,13 @@ import numpy as np
 from harv_jax.evaluation.metrics import RunMetrics
 from harv_jax.evaluation.monte_carlo import MCRunOutput, gate_summary, simplex_summary
 from harv_jax.evaluation.paired import mean_nr_at_run_s
+from harv_jax.evaluation.summary_documents import COMPARE_COLUMNS as COMPARE_COLUMNS
+from harv_jax.evaluation.summary_documents import FLY_SETTING_KEYS as FLY_SETTING_KEYS
+from harv_jax.evaluation.summary_documents import controllers_setting as controllers_setting
+from harv_jax.evaluation.summary_documents import envelope_summary as envelope_summary
+from harv_jax.evaluation.summary_documents import flight_settings as flight_settings
+from harv_jax.evaluation.summary_documents import flight_summary as flight_summary
+from harv_jax.evaluation.summary_documents import mc_summary as mc_summary
 from harv_jax.task.criteria import OUTCOME_NAMES
 from harv_jax.task.spec import DT_S
 
@@ -194,114 +203,6 @@ def summarize(m: RunMetrics) -> Mapping[str, Any]:
         "t_recover_s_mean": float(t_rec.mean()) if t_rec.size else None,
     }
 
-
-# ----------------------------------------------------------------------------------------------------
-# Documents: the top level of each JSON file.
-
-
-def controllers_setting(names: list[str], policy: str | None, zeta: str) -> dict[str, Any]:
-    """``policy`` and ``zeta_schedule`` of a summary: recorded only when a controller reads them."""
-    from harv_jax.control.registry import uses_option
-    from harv_jax.policies import DEFAULT_POLICY_SPEC
-
-    return {
-        "policy": (policy or DEFAULT_POLICY_SPEC) if uses_option(names, "policy") else None,
-        "zeta_schedule": zeta if uses_option(names, "zeta") else None,
-    }
-
-
-def mc_summary(
-    names: list[str],
-    policy: str | None,
-    zeta: str,
-    runs: int,
-    target_alpha_rad: float,
-    duration_s: float,
-    seed: int,
-    randomize: bool,
-    dt_s: float,
-    h0_ft: float,
-    devices: list[str],
-    command: str,
-) -> dict[str, Any]:
-    """The settings of a ``summary.json`` (``"controllers"``: empty, one block per controller to add)."""
-    return {
-        "runs": runs, "target_alpha_rad": target_alpha_rad, "duration_s": duration_s, "seed": seed,
-        "randomize": randomize, "dt_s": dt_s, "h0_ft": h0_ft, **controllers_setting(names, policy, zeta),
-        "devices": devices, "command": command, "controllers": {},
-    }  # fmt: skip
-
-
-def envelope_summary(
-    names: list[str],
-    policy: str | None,
-    zeta: str,
-    grid: dict[str, Any],
-    runs_per_controller: int,
-    target_alpha_rad: float,
-    duration_s: float,
-    dt_s: float,
-    seed: int,
-    devices: list[str],
-    command: str,
-) -> dict[str, Any]:
-    """The settings of an ``envelope.json`` (``"controllers"``: empty, one block per controller to add)."""
-    setting = controllers_setting(names, policy, zeta)
-    return {
-        "grid": grid, "runs_per_controller": runs_per_controller, "target_alpha_rad": target_alpha_rad,
-        "reference_rad": [target_alpha_rad, 0.0, 0.0], "duration_s": duration_s, "dt_s": dt_s, "seed": seed,
-        "aircraft": "nominal", "devices": devices, "policy": setting["policy"],
-        "zeta_schedule": setting["zeta_schedule"], "command": command, "controllers": {},
-    }  # fmt: skip
-
-
-def flight_settings(
-    controller: str,
-    policy: str | None,
-    zeta: str,
-    switching: str,
-    scenario: str,
-    seed: int,
-    duration_s: float,
-    dt_s: float,
-    target_alpha_rad: float,
-    spin_s: float,
-) -> dict[str, Any]:
-    """The settings block of a fly ``metrics.json``."""
-    setting = controllers_setting([controller], policy, zeta)
-    return {
-        "controller": controller, "policy": setting["policy"], "zeta_schedule": setting["zeta_schedule"],
-        "switching": switching, "scenario": scenario, "seed": seed, "duration_s": duration_s, "dt_s": dt_s,
-        "reference_rad": [target_alpha_rad, 0.0, 0.0], "spin_s": spin_s if scenario == "spin" else None,
-    }  # fmt: skip
-
-
-def flight_summary(
-    settings: dict[str, Any],
-    t_engage_s: float,
-    initial_state: dict[str, float],
-    spin_check: dict | None,
-    metrics: dict[str, Any],
-    certificate: dict | None,
-) -> dict[str, Any]:
-    """A fly ``metrics.json``: the settings, then the run's engagement time, state, spin check and metrics."""
-    return {
-        **settings, "t_engage_s": t_engage_s, "initial_state": initial_state, "spin_check": spin_check,
-        "metrics": metrics, "certificate": certificate,
-    }  # fmt: skip
-
-
-#: Settings of a fly metrics.json shown by the report (in this order).
-FLY_SETTING_KEYS = ("controller", "aircraft", "scenario", "switching", "seed", "duration_s", "dt_s",
-                    "reference_rad", "spin_s", "t_engage_s")  # fmt: skip
-
-#: Columns of the compare metrics table (compare_metrics.csv/.md and compare.json's rows).
-COMPARE_COLUMNS = (
-    "scenario", "controller", "outcome", "recovery_time_s", "alpha_overshoot_deg", "omega_settling_time_s",
-    "altitude_loss_ft", "control_tv_rad", "chatter_index_rad2", "constraint_violations",
-    "rate_saturation_fraction", "zeta_active_fraction", "supervisor_fallbacks", "recovery_time_nr_at_run_s",
-    "recovery_time_vs_smc",
-)  # fmt: skip
 
 # ----------------------------------------------------------------------------------------------------
 # The report's tables: (label, key path in a controller block, format).
