@@ -15,7 +15,8 @@ config, seed, ``obs_count``). Deterministic action: ``clip(mean, -1, 1)``; stoch
 exp(log_std) * N(0, 1), -1, 1)``.
 
 ``export_stablehlo`` writes the deterministic policy with ``jax.export`` (serialized StableHLO, symbolic
-batch size, weights baked in); :func:`load_exported` reads it back without the model code.
+batch size, weights baked in); :func:`load_exported` reads it back without the model code (both in
+``harv_jax.policy_stablehlo``, re-exported here).
 """
 
 from __future__ import annotations
@@ -34,6 +35,9 @@ from flax import traverse_util
 
 from harv_jax.errors import UsageError
 from harv_jax.guards import MAX_LAYER_WIDTH, check_npz_archive
+from harv_jax.policy_stablehlo import export_available as export_available
+from harv_jax.policy_stablehlo import export_stablehlo as export_stablehlo
+from harv_jax.policy_stablehlo import load_exported as load_exported
 from harv_jax.ppo import normalize as obs_norm
 from harv_jax.ppo.networks import (
     PPONetworks,
@@ -280,8 +284,12 @@ def _load_checkpoint(path: Path, seed: int) -> Policy:
             )
         out.append(jnp.asarray(x))
     tree = jax.tree_util.tree_unflatten(treedef, out)
-    meta = {"source": str(path), "seed": seed, "period": payload["period"],
-            "normalize_observations": cfg.normalize_observations}  # fmt: skip
+    meta = {
+        "source": str(path),
+        "seed": seed,
+        "period": payload["period"],
+        "normalize_observations": cfg.normalize_observations,
+    }
     return make_policy(tree["params"], tree["normalizer"], networks, cfg.normalize_observations, meta)
 
 
@@ -360,41 +368,3 @@ def resolve_policy(spec: str | Path | None) -> Policy:
     if sep and Path(path).is_file() and not Path(text).exists():
         raise UsageError(f"policy {text!r}: the learner after '@' must be a whole number >= 0, not {seed!r}")
     return load(text)
-
-
-# -------------------------------------------------------------------------------------------- jax.export
-
-
-def export_available() -> bool:
-    """True if ``jax.export`` serialization works here (it needs the ``flatbuffers`` package)."""
-    import importlib.util
-
-    return importlib.util.find_spec("flatbuffers") is not None
-
-
-def export_stablehlo(path: str | Path, policy: Policy) -> Path:
-    """Serialize ``policy.deterministic`` for obs ``[b, O]`` float32 (symbolic b) with ``jax.export``.
-
-    Raises:
-        UsageError: the ``flatbuffers`` package (needed by jax.export serialization) is not installed.
-    """
-    if not export_available():
-        raise UsageError("jax.export serialization needs the 'flatbuffers' package: pip install flatbuffers")
-    (b,) = jax.export.symbolic_shape("b")
-    spec = jax.ShapeDtypeStruct((b, policy.networks.observation_size), jnp.float32)
-    exported = jax.export.export(policy.deterministic)(spec)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(exported.serialize())
-    tmp.replace(path)
-    return path
-
-
-def load_exported(path: str | Path) -> Callable[[jax.Array], jax.Array]:
-    """Read a :func:`export_stablehlo` file: returns ``obs [b, O] -> action [b, A]``."""
-    p = Path(path)
-    if not p.is_file():
-        raise UsageError(f"exported policy {str(p)!r} does not exist")
-    exported = jax.export.deserialize(bytearray(p.read_bytes()))
-    return exported.call

@@ -88,7 +88,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("harv_jax.evaluation", "harv_jax.optimal"),
     ("harv_jax.plots",),
     ("harv_jax.env", "harv_jax.control"),
-    ("harv_jax.policy", "harv_jax.policies"),
+    ("harv_jax.policy", "harv_jax.policy_stablehlo", "harv_jax.policies"),
     ("harv_jax.ppo",),
     ("harv_jax.task",),
     ("harv_jax.dynamics",),

@@ -1,0 +1,55 @@
+"""The deterministic policy as serialized StableHLO (``jax.export``), for use without the model code.
+
+:func:`export_stablehlo` writes ``policy.deterministic`` for a symbolic batch size with the weights baked in;
+:func:`load_exported` reads such a file back as ``obs [b, O] -> action [b, A]``. Serialization needs the
+``flatbuffers`` package (:func:`export_available`). ``harv_jax.policy`` re-exports all three.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import jax
+import jax.numpy as jnp
+
+from harv_jax.errors import UsageError
+
+if TYPE_CHECKING:
+    from harv_jax.policy import Policy
+
+
+def export_available() -> bool:
+    """True if ``jax.export`` serialization works here (it needs the ``flatbuffers`` package)."""
+    import importlib.util
+
+    return importlib.util.find_spec("flatbuffers") is not None
+
+
+def export_stablehlo(path: str | Path, policy: Policy) -> Path:
+    """Serialize ``policy.deterministic`` for obs ``[b, O]`` float32 (symbolic b) with ``jax.export``.
+
+    Raises:
+        UsageError: the ``flatbuffers`` package (needed by jax.export serialization) is not installed.
+    """
+    if not export_available():
+        raise UsageError("jax.export serialization needs the 'flatbuffers' package: pip install flatbuffers")
+    (b,) = jax.export.symbolic_shape("b")
+    spec = jax.ShapeDtypeStruct((b, policy.networks.observation_size), jnp.float32)
+    exported = jax.export.export(policy.deterministic)(spec)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_bytes(exported.serialize())
+    tmp.replace(path)
+    return path
+
+
+def load_exported(path: str | Path) -> Callable[[jax.Array], jax.Array]:
+    """Read a :func:`export_stablehlo` file: returns ``obs [b, O] -> action [b, A]``."""
+    p = Path(path)
+    if not p.is_file():
+        raise UsageError(f"exported policy {str(p)!r} does not exist")
+    exported = jax.export.deserialize(bytearray(p.read_bytes()))
+    return exported.call
