@@ -47,8 +47,12 @@ def plot_hybrid(
         fin = np.isfinite(zeta_fb[:, j])
         if fin.any():
             peak = np.max(np.abs(zeta_fb[fin, j])) * DEG_PER_RAD
-            ax.set_title(f"{n}: the unsaturated feedback command |zeta u_fb| peaks at {peak:,.0f} deg "
-                         "(not drawn; the filter limits it)", fontsize=8, loc="left")  # fmt: skip
+            ax.set_title(
+                f"{n}: the unsaturated feedback command |zeta u_fb| peaks at {peak:,.0f} deg "
+                "(not drawn; the filter limits it)",
+                fontsize=8,
+                loc="left",
+            )
         span = hi - lo
         ax.set_ylim(lo - 0.1 * span, hi + 0.1 * span)
         ax.set_ylabel(f"{n} [deg]")

@@ -27,8 +27,14 @@ def write_bands_csv(t_s: np.ndarray, history_rad: np.ndarray, path: str | Path) 
     pct = band_percentiles(history_rad)
     names = [f"{y}_p{q}_deg" for y in ("alpha", "beta", "mu") for q in BAND_PERCENTILES]
     cols = [pct[j, :, i] for i in range(3) for j in range(len(BAND_PERCENTILES))]
-    np.savetxt(path, np.column_stack([t_s, *cols]), delimiter=",", header=",".join(["t_s", *names]),
-               comments="", fmt="%.6g")  # fmt: skip
+    np.savetxt(
+        path,
+        np.column_stack([t_s, *cols]),
+        delimiter=",",
+        header=",".join(["t_s", *names]),
+        comments="",
+        fmt="%.6g",
+    )
     return Path(path)
 
 
@@ -112,10 +118,16 @@ def plot_mc_bands_overlay(
         pct = band_percentiles(h)
         style = RUN_STYLES[k % len(RUN_STYLES)]
         for i, ax in enumerate(axes):
-            ax.fill_between(t_s, pct[0, :, i], pct[-1, :, i], color=f"C{k}", alpha=0.18, lw=0,
-                            label=f"{ctrl} 5-95%")  # fmt: skip
-            ax.plot(t_s, pct[2, :, i], color=f"C{k}", label=f"{ctrl} median",
-                    **{**style, "lw": max(style["lw"] * 0.8, 1.2)})  # fmt: skip
+            ax.fill_between(
+                t_s, pct[0, :, i], pct[-1, :, i], color=f"C{k}", alpha=0.18, lw=0, label=f"{ctrl} 5-95%"
+            )
+            ax.plot(
+                t_s,
+                pct[2, :, i],
+                color=f"C{k}",
+                label=f"{ctrl} median",
+                **{**style, "lw": max(style["lw"] * 0.8, 1.2)},
+            )
     for i, (ax, name) in enumerate(zip(axes, ("alpha", "beta", "mu"), strict=True)):
         ax.axhline(np.degrees(reference_rad[i]), color="k", ls="--", lw=0.8, label="reference")
         ax.set_ylabel(f"{name} [deg]")
@@ -157,13 +169,25 @@ def plot_terminal_errors(errors_deg: Mapping[str, np.ndarray], path: str | Path)
             fin = v[np.isfinite(v)]
             under, over = int(np.sum(fin < -lim)), int(np.sum(fin > lim))
             n_nan = int(v.size - fin.size)
-            extra = [f"{under} < -{lim:g}" if under else "", f"{over} > {lim:g}" if over else "",
-                     f"{n_nan} non-finite" if n_nan else ""]  # fmt: skip
+            extra = [
+                f"{under} < -{lim:g}" if under else "",
+                f"{over} > {lim:g}" if over else "",
+                f"{n_nan} non-finite" if n_nan else "",
+            ]
             extra = ", ".join(x for x in extra if x)
             label = f"{ctrl} (N = {v.size}" + (f"; {extra}" if extra else "") + ")"
             shown = fin[np.abs(fin) <= lim]
-            ax.hist(shown, bins=bins, histtype="step", color=f"C{k}", lw=style["lw"] * 0.9, ls=style["ls"],
-                    alpha=max(style["alpha"], 0.7), label=label, zorder=style["zorder"])  # fmt: skip
+            ax.hist(
+                shown,
+                bins=bins,
+                histtype="step",
+                color=f"C{k}",
+                lw=style["lw"] * 0.9,
+                ls=style["ls"],
+                alpha=max(style["alpha"], 0.7),
+                label=label,
+                zorder=style["zorder"],
+            )
             ax.hist(shown, bins=bins, histtype="stepfilled", color=f"C{k}", alpha=0.12, zorder=1)
             for side, count in ((-1, under), (1, over)):
                 if count:
@@ -171,8 +195,15 @@ def plot_terminal_errors(errors_deg: Mapping[str, np.ndarray], path: str | Path)
                     ax.bar(
                         x, count, width=1.6 * width, color=f"C{k}", alpha=0.5, hatch="//", edgecolor=f"C{k}"
                     )
-                    ax.text(x, count * 1.15, f"{count} {'<' if side < 0 else '>'} {side * lim:+g}",
-                            ha="center", va="bottom", fontsize=7, color=f"C{k}")  # fmt: skip
+                    ax.text(
+                        x,
+                        count * 1.15,
+                        f"{count} {'<' if side < 0 else '>'} {side * lim:+g}",
+                        ha="center",
+                        va="bottom",
+                        fontsize=7,
+                        color=f"C{k}",
+                    )
         if any(np.any(np.abs(v[np.isfinite(v)]) > lim) for v in cols.values()):
             any_overflow = True
             for side in (-1, 1):
@@ -186,8 +217,12 @@ def plot_terminal_errors(errors_deg: Mapping[str, np.ndarray], path: str | Path)
         ax.set_ylabel("runs (log)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    note = (f"; hatched bars beyond the grey lines: number of runs with |error| > {lim:g} deg (overflow, "
-            "not their values)" if any_overflow else "")  # fmt: skip
+    note = (
+        f"; hatched bars beyond the grey lines: number of runs with |error| > {lim:g} deg (overflow, "
+        "not their values)"
+        if any_overflow
+        else ""
+    )
     fig.suptitle(f"terminal tracking errors per controller{note}", fontsize=9)
     fig.tight_layout()
     path = Path(path)

@@ -115,9 +115,16 @@ def plot_time_histories(
             ax.grid(alpha=0.3)
     for ax in axes[-1]:
         ax.set_xlabel("t [s]")
-    handles = [Line2D([], [], color=f"C{k}", label=lab, **{kk: v for kk, v in RUN_STYLES[k % 4].items()
-                                                         if kk != "zorder"})
-               for k, lab in enumerate(runs)]  # fmt: skip
+    handles = [
+        Line2D(
+            [],
+            [],
+            color=f"C{k}",
+            label=lab,
+            **{kk: v for kk, v in RUN_STYLES[k % 4].items() if kk != "zorder"},
+        )
+        for k, lab in enumerate(runs)
+    ]
     if references:
         handles.append(
             Line2D([], [], color="k", ls="--", lw=0.8, label="reference (alpha_d; beta_d = mu_d = 0)")
@@ -126,8 +133,14 @@ def plot_time_histories(
         handles.append(
             Line2D([], [], color="grey", ls=":", lw=1.0, label=f"controller engaged (t = {t_marker_s:g} s)")
         )
-    fig.legend(handles=handles, loc="upper center", ncol=min(len(handles), 5), fontsize=9, frameon=False,
-               bbox_to_anchor=(0.5, 0.975))  # fmt: skip
+    fig.legend(
+        handles=handles,
+        loc="upper center",
+        ncol=min(len(handles), 5),
+        fontsize=9,
+        frameon=False,
+        bbox_to_anchor=(0.5, 0.975),
+    )
     if title:
         fig.suptitle(title, y=0.995)
     fig.tight_layout(rect=(0, 0, 1, 0.955))

@@ -29,8 +29,10 @@ def plot_training_curve(path: Path, history: list[dict[str, Any]], title: str) -
     ax.grid(alpha=0.3)
     ax.legend()
     ax = axes[1]
-    for k, label, c in (("episode/recovered", "recovered at episode end", "C2"),
-                        ("episode/terminated", "terminated (left envelope)", "C3")):  # fmt: skip
+    for k, label, c in (
+        ("episode/recovered", "recovered at episode end", "C2"),
+        ("episode/terminated", "terminated (left envelope)", "C3"),
+    ):
         if k in history[0]:
             v = np.stack([np.asarray(row[k], np.float64).reshape(-1) for row in history])
             m, s = np.nanmean(v, axis=1), np.nanstd(v, axis=1)
