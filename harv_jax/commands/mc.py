@@ -78,9 +78,19 @@ def register(app: typer.Typer) -> None:
         warn_loop_mismatch(names, policy, zeta)
         out_dir = prepare_out_dir(out, force)
         study = monte_carlo(
-            names, policy, runs, target_alpha, duration, seed, randomize, chunk, zeta=zeta,
-            command=command_line(), progress=typer.echo, disturbances=disturbance_spec,
+            names,
+            policy,
+            runs,
+            target_alpha,
+            duration,
+            seed,
+            randomize,
+            chunk,
+            zeta=zeta,
+            command=command_line(),
+            progress=typer.echo,
+            disturbances=disturbance_spec,
             aircraft=aircraft_name,
-        )  # fmt: skip
+        )
         write_monte_carlo(out_dir, study, save_trajectories)
         typer.echo(f"wrote {out_dir}/summary.json, bands_*.png/.csv, terminal_errors.png, runs.csv")

@@ -90,9 +90,12 @@ def register(app: typer.Typer) -> None:
         from harv_jax.report.optimal_section import optimal_markdown
 
         cfg = SearchConfig(
-            horizon_s=horizon, knot_dt_s=knot_spacing, iterations=iterations, rounds=rounds_for(iterations),
+            horizon_s=horizon,
+            knot_dt_s=knot_spacing,
+            iterations=iterations,
+            rounds=rounds_for(iterations),
             learning_rate=learning_rate,
-        )  # fmt: skip
+        )
         out_dir = prepare_out_dir(out, force)
         if scenario == "random":
             sc = mc_scenario(seed, runs, aircraft_name)
@@ -107,7 +110,9 @@ def register(app: typer.Typer) -> None:
             summary["spin_s"] = spin_s
         write_optimal(out_dir, study, summary, cfg)
         (out_dir / "optimal_report.md").write_text(optimal_markdown(summary))
-        typer.echo(f"wrote {out_dir}/runs.csv, optimal_runs.csv, summary.json, vs_optimal.png, "
-                   "search_progress.png, optimal_report.md")  # fmt: skip
+        typer.echo(
+            f"wrote {out_dir}/runs.csv, optimal_runs.csv, summary.json, vs_optimal.png, "
+            "search_progress.png, optimal_report.md"
+        )
         if save_demos is not None:
             typer.echo(f"wrote {write_demos(save_demos, study, target_alpha)}")

@@ -96,10 +96,20 @@ def register(app: typer.Typer) -> None:
         typer.echo(f"[quickstart] 2/3 Monte Carlo: {runs} runs x 60 s from the paper's reset bounds")
         prepare_out_dir(out_dir / "mc")  # with the run marker: --force may replace it later
         study = monte_carlo(
-            names, policy, runs, ALPHA_TARGET_RAD, DURATION_S, seed, False, CHUNK, zeta=zeta,
-            command=command_line(), progress=typer.echo, disturbances=disturbance_spec,
+            names,
+            policy,
+            runs,
+            ALPHA_TARGET_RAD,
+            DURATION_S,
+            seed,
+            False,
+            CHUNK,
+            zeta=zeta,
+            command=command_line(),
+            progress=typer.echo,
+            disturbances=disturbance_spec,
             aircraft=aircraft_name,
-        )  # fmt: skip
+        )
         write_monte_carlo(out_dir / "mc", study)
         typer.echo("[quickstart] 3/3 report")
         paths = build_report(out_dir, out_dir)

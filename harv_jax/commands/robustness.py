@@ -68,8 +68,13 @@ def register(app: typer.Typer) -> None:
                 f"--disturbances {disturbances!r}: allowed: a comma list of {', '.join(DISTURBANCE_NAMES)}, "
                 "each once"
             )
-        given = {"noise": noise_levels, "delay": delay_levels, "gust": gust_levels, "model": model_levels,
-                 "lag": lag_levels}  # fmt: skip
+        given = {
+            "noise": noise_levels,
+            "delay": delay_levels,
+            "gust": gust_levels,
+            "model": model_levels,
+            "lag": lag_levels,
+        }
         for name, text in given.items():
             if text is not None and name not in swept:
                 raise UsageError(f"--{name}-levels {text!r} given but {name} is not in --disturbances")

@@ -14,9 +14,17 @@ from harv_jax.task.spec import DT_S, H0_FT
 
 #: Default initial state (straight and level near trim at 600 ft/s, 25,000 ft).
 DEFAULT_STATE = {
-    "V": 600.0, "alpha": 0.089, "beta": 0.0, "p": 0.0, "q": 0.0, "r": 0.0,
-    "mu": 0.0, "gamma": 0.0, "chi": 0.0, "h": H0_FT,
-}  # fmt: skip
+    "V": 600.0,
+    "alpha": 0.089,
+    "beta": 0.0,
+    "p": 0.0,
+    "q": 0.0,
+    "r": 0.0,
+    "mu": 0.0,
+    "gamma": 0.0,
+    "chi": 0.0,
+    "h": H0_FT,
+}
 DEFAULT_CONTROLS = {"de": -0.0045, "da": 0.0, "dr": 0.0}
 
 
@@ -120,12 +128,19 @@ def register(app: typer.Typer) -> None:
         t, cols = run_simulate(s, c, duration, dt, throttle, aircraft_name)
         names = ("t",) + WIND_STATE_NAMES + CONTROL_NAMES
         np.savetxt(
-            out_dir / "trajectory.csv", np.column_stack([t, cols]), delimiter=",",
-            header=",".join(names), comments="", fmt="%.8g",
-        )  # fmt: skip
+            out_dir / "trajectory.csv",
+            np.column_stack([t, cols]),
+            delimiter=",",
+            header=",".join(names),
+            comments="",
+            fmt="%.8g",
+        )
         columns = {n: cols[:, i] for i, n in enumerate(WIND_STATE_NAMES + CONTROL_NAMES)}
-        plot_time_histories(t, {"open loop": columns}, out_dir / "trajectory.png",
-                            title="harv-jax simulate (open loop)")  # fmt: skip
+        plot_time_histories(
+            t, {"open loop": columns}, out_dir / "trajectory.png", title="harv-jax simulate (open loop)"
+        )
         finite = bool(np.all(np.isfinite(cols)))
-        typer.echo(f"wrote {out_dir / 'trajectory.csv'} and trajectory.png "
-                   f"({len(t)} rows{'' if finite else ', NON-FINITE values'})")  # fmt: skip
+        typer.echo(
+            f"wrote {out_dir / 'trajectory.csv'} and trajectory.png "
+            f"({len(t)} rows{'' if finite else ', NON-FINITE values'})"
+        )
