@@ -90,8 +90,10 @@ def with_measurement_filter(controller: Controller, cutoff_hz: float, order: int
         z_ss = jnp.stack([(b[i:] - a[i:] * 1.0).sum() * m for i in range(1, order + 1)])
         z = jnp.where(state.started, state.z, z_ss)
         y = b[0] * m + z[0]
-        rows = [z[i + 1] + b[i + 1] * m - a[i + 1] * y if i + 1 < order else b[i + 1] * m - a[i + 1] * y
-                for i in range(order)]  # fmt: skip
+        rows = [
+            z[i + 1] + b[i + 1] * m - a[i + 1] * y if i + 1 < order else b[i + 1] * m - a[i + 1] * y
+            for i in range(order)
+        ]
         z_new = jnp.stack(rows)
         inner = state.inner
         if hasattr(inner, "u_prev_rad"):
