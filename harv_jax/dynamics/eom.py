@@ -63,9 +63,15 @@ def forces_moments(
     qbar = 0.5 * rho * vt_fps * vt_fps
     thrust = params.throttle * params.T_max * lapse
     c = coefficients(
-        alpha_rad, beta_rad, pqr_radps, jnp.maximum(vt_fps, V_FLOOR_FPS), u_rad, params,
-        control_forces, alpha_in_range,
-    )  # fmt: skip
+        alpha_rad,
+        beta_rad,
+        pqr_radps,
+        jnp.maximum(vt_fps, V_FLOOR_FPS),
+        u_rad,
+        params,
+        control_forces,
+        alpha_in_range,
+    )
     qs = qbar * params.S
     return ForcesMoments(
         L=qs * c.CL,
@@ -79,9 +85,12 @@ def forces_moments(
 
 
 def body_rate_derivatives(
-    pqr_radps: jnp.ndarray, Lroll: jnp.ndarray, M: jnp.ndarray, N: jnp.ndarray,
+    pqr_radps: jnp.ndarray,
+    Lroll: jnp.ndarray,
+    M: jnp.ndarray,
+    N: jnp.ndarray,
     params: AircraftParams,
-) -> jnp.ndarray:  # fmt: skip
+) -> jnp.ndarray:
     """[p_dot, q_dot, r_dot], rad/s^2: rigid body with x-z symmetry and product of inertia Ixz."""
     p, q, r = pqr_radps[0], pqr_radps[1], pqr_radps[2]
     Ixx, Iyy, Izz, Ixz = params.Ixx, params.Iyy, params.Izz, params.Ixz
@@ -190,9 +199,8 @@ def wind_derivatives(
     h_dot = vt * sg
     pqr_dot = body_rate_derivatives(pqr, fm.Lroll, fm.M, fm.N, params)
     return jnp.stack(
-        [v_dot, alpha_dot, beta_dot, pqr_dot[0], pqr_dot[1], pqr_dot[2],
-         mu_dot, gamma_dot, chi_dot, h_dot]
-    )  # fmt: skip
+        [v_dot, alpha_dot, beta_dot, pqr_dot[0], pqr_dot[1], pqr_dot[2], mu_dot, gamma_dot, chi_dot, h_dot]
+    )
 
 
 def body_derivatives(

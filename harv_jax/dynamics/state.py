@@ -31,9 +31,7 @@ from flax import struct
 from harv_jax.dynamics.fusion import atan2
 
 #: Names of the wind-axis state components, in order.
-WIND_STATE_NAMES: tuple[str, ...] = (
-    "V", "alpha", "beta", "p", "q", "r", "mu", "gamma", "chi", "h",
-)  # fmt: skip
+WIND_STATE_NAMES: tuple[str, ...] = ("V", "alpha", "beta", "p", "q", "r", "mu", "gamma", "chi", "h")
 CONTROL_NAMES: tuple[str, ...] = ("de", "da", "dr")
 #: Position of each wind-state component by name (``x[..., WIND_INDEX["alpha"]]``).
 WIND_INDEX = {n: i for i, n in enumerate(WIND_STATE_NAMES)}
@@ -218,9 +216,19 @@ def to_wind(state: BodyState) -> jnp.ndarray:
     c31, c32, c33 = c_nb[2, 0], c_nb[2, 1], c_nb[2, 2]
     mu = atan2(-ca * sb * c31 + cb * c32 - sa * sb * c33, -sa * c31 + ca * c33)
     return jnp.stack(
-        [vt, alpha, beta, state.pqr_radps[0], state.pqr_radps[1], state.pqr_radps[2],
-         mu, gamma, chi, state.pos_ft[2]]
-    )  # fmt: skip
+        [
+            vt,
+            alpha,
+            beta,
+            state.pqr_radps[0],
+            state.pqr_radps[1],
+            state.pqr_radps[2],
+            mu,
+            gamma,
+            chi,
+            state.pos_ft[2],
+        ]
+    )
 
 
 def is_finite(state: BodyState) -> jnp.ndarray:
