@@ -105,10 +105,14 @@ def default_envelope(h_floor_ft: float = H_FLOOR_FT, dtype=None) -> Envelope:
         return jnp.asarray(v, dtype=dtype or jnp.result_type(float))
 
     return Envelope(
-        v_min_fps=f(V_MIN_FPS), v_max_fps=f(V_MAX_FPS), alpha_min_rad=f(ALPHA_MIN_RAD),
-        alpha_max_rad=f(ALPHA_MAX_RAD), rate_max_radps=f(RATE_MAX_RADPS), gamma_max_rad=f(GAMMA_MAX_RAD),
+        v_min_fps=f(V_MIN_FPS),
+        v_max_fps=f(V_MAX_FPS),
+        alpha_min_rad=f(ALPHA_MIN_RAD),
+        alpha_max_rad=f(ALPHA_MAX_RAD),
+        rate_max_radps=f(RATE_MAX_RADPS),
+        gamma_max_rad=f(GAMMA_MAX_RAD),
         h_floor_ft=f(h_floor_ft),
-    )  # fmt: skip
+    )
 
 
 def tracking_errors(x_wind: jnp.ndarray, reference_rad: jnp.ndarray) -> jnp.ndarray:

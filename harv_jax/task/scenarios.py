@@ -42,9 +42,17 @@ RESET_HIGH = np.array([RESET_BOUNDS[n][1] for n in RESET_STATE_NAMES])
 
 #: Spin entry state (wind axes, ft/s, rad, rad/s, ft) -- see the module docstring.
 SPIN_ENTRY: dict[str, float] = {
-    "V": 300.0, "alpha": 0.9, "beta": 0.0, "p": -0.5, "q": 0.0, "r": -0.5,
-    "mu": 0.0, "gamma": 0.0, "chi": 0.0, "h": H0_FT,
-}  # fmt: skip
+    "V": 300.0,
+    "alpha": 0.9,
+    "beta": 0.0,
+    "p": -0.5,
+    "q": 0.0,
+    "r": -0.5,
+    "mu": 0.0,
+    "gamma": 0.0,
+    "chi": 0.0,
+    "h": H0_FT,
+}
 #: Pro-spin controls [de, da, dr], rad: full aft stick, full positive aileron and rudder (left spin).
 SPIN_CONTROLS_RAD: tuple[float, float, float] = (-0.436, 0.436, 0.524)
 #: Time held in the spin before the controller takes over, s (paper Sec. VI).

@@ -25,9 +25,7 @@ from harv_jax.task.spec import (
 
 #: Names of the observation components, in order (paper: s = {V, alpha, beta, p, q, r, mu, gamma,
 #: alpha_d, beta_d, mu_d}); units ft/s, rad, rad/s.
-OBS_NAMES: tuple[str, ...] = (
-    "V", "alpha", "beta", "p", "q", "r", "mu", "gamma", "alpha_d", "beta_d", "mu_d",
-)  # fmt: skip
+OBS_NAMES: tuple[str, ...] = ("V", "alpha", "beta", "p", "q", "r", "mu", "gamma", "alpha_d", "beta_d", "mu_d")
 OBSERVATION_SIZE = len(OBS_NAMES)
 ACTION_SIZE = 3
 #: Number of leading observation components that are measured (sensor noise applies to them).
@@ -39,13 +37,13 @@ _RATE = RATE_MAX_RADPS
 #: (alpha_d) and [-pi, pi] (beta_d, mu_d). Observations are clipped to these bounds, so they only bind
 #: on a terminal observation (the envelope is the same box) or through sensor noise at the edge.
 OBS_LOW = np.array(
-    [V_MIN_FPS, ALPHA_MIN_RAD, -_PI, -_RATE, -_RATE, -_RATE, -_PI, -GAMMA_MAX_RAD,
-     ALPHA_MIN_RAD, -_PI, -_PI], dtype=np.float32,
-)  # fmt: skip
+    [V_MIN_FPS, ALPHA_MIN_RAD, -_PI, -_RATE, -_RATE, -_RATE, -_PI, -GAMMA_MAX_RAD, ALPHA_MIN_RAD, -_PI, -_PI],
+    dtype=np.float32,
+)
 OBS_HIGH = np.array(
-    [V_MAX_FPS, ALPHA_MAX_RAD, _PI, _RATE, _RATE, _RATE, _PI, GAMMA_MAX_RAD,
-     ALPHA_MAX_RAD, _PI, _PI], dtype=np.float32,
-)  # fmt: skip
+    [V_MAX_FPS, ALPHA_MAX_RAD, _PI, _RATE, _RATE, _RATE, _PI, GAMMA_MAX_RAD, ALPHA_MAX_RAD, _PI, _PI],
+    dtype=np.float32,
+)
 
 
 def action_to_command(action: jnp.ndarray, u_min_rad: jnp.ndarray, u_max_rad: jnp.ndarray) -> jnp.ndarray:
