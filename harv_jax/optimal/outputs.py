@@ -77,7 +77,7 @@ def optimal_block(study: OptimalStudy, cfg: SearchConfig) -> dict[str, Any]:
             "hold_weight": cfg.hold_weight,
             "run_s": cfg.run_s,
             "optimizer": "optax.sgd with momentum on the per-run normalized gradient",
-        },  # fmt: skip
+        },
         "recovered_fraction": float(np.mean(study.outputs[OPTIMAL].metrics.recovered)),
         "never_slower_than_best": bool(np.all(t[OPTIMAL] <= t_best)),
         "strictly_faster_fraction": float(np.mean(t[OPTIMAL] < t_best)),
@@ -106,18 +106,35 @@ def write_optimal_runs_csv(path: Path, study: OptimalStudy, run_s: float) -> Non
     with path.open("w", newline="") as f:
         w = csv.writer(f)
         others = [n for n in names if n != OPTIMAL]
-        w.writerow(["run", "source", "best_controller", "warm_start", "t_searched_s",
-                    *[f"t_{n}_s" for n in names], *[f"ratio_{n}" for n in others]])  # fmt: skip
+        w.writerow(
+            [
+                "run",
+                "source",
+                "best_controller",
+                "warm_start",
+                "t_searched_s",
+                *[f"t_{n}_s" for n in names],
+                *[f"ratio_{n}" for n in others],
+            ]
+        )
         for i in range(len(study.source)):
             ts = searched.t_recover_s[i] if searched.recovered[i] else np.nan
-            w.writerow([i, study.source[i], study.best[i],
-                        "smc-brake" if study.v_switch_fps[i] < 1000.0 else "smc", f"{ts:.4g}",
-                        *[f"{t[n][i]:.4g}" for n in names],
-                        *[f"{t[n][i] / max(t[OPTIMAL][i], DT_S):.4g}" for n in others]])  # fmt: skip
+            w.writerow(
+                [
+                    i,
+                    study.source[i],
+                    study.best[i],
+                    "smc-brake" if study.v_switch_fps[i] < 1000.0 else "smc",
+                    f"{ts:.4g}",
+                    *[f"{t[n][i]:.4g}" for n in names],
+                    *[f"{t[n][i] / max(t[OPTIMAL][i], DT_S):.4g}" for n in others],
+                ]
+            )
 
 
-def build_summary(study: OptimalStudy, cfg: SearchConfig, target_alpha_rad: float, seed: int,
-                  command: str, scenario: str) -> dict[str, Any]:  # fmt: skip
+def build_summary(
+    study: OptimalStudy, cfg: SearchConfig, target_alpha_rad: float, seed: int, command: str, scenario: str
+) -> dict[str, Any]:
     """summary.json: the Monte Carlo's layout (settings, one block per controller) plus ``optimal``."""
     import jax
 
@@ -127,9 +144,19 @@ def build_summary(study: OptimalStudy, cfg: SearchConfig, target_alpha_rad: floa
     n = len(study.source)
     n_steps = int(round(cfg.run_s / DT_S))
     s = mc_summary(
-        [*BASELINES, OPTIMAL], None, "simplex", n, target_alpha_rad, n_steps * DT_S, seed, False, DT_S,
-        float(study.scenario.x0_wind[0, 9]) if n else H0_FT, [str(d) for d in jax.local_devices()], command,
-    )  # fmt: skip
+        [*BASELINES, OPTIMAL],
+        None,
+        "simplex",
+        n,
+        target_alpha_rad,
+        n_steps * DT_S,
+        seed,
+        False,
+        DT_S,
+        float(study.scenario.x0_wind[0, 9]) if n else H0_FT,
+        [str(d) for d in jax.local_devices()],
+        command,
+    )
     s["scenario"] = scenario
     wall = {"compile": 0.0, "run": 0.0}
     for name, out in study.outputs.items():
@@ -150,13 +177,17 @@ def write_optimal(out_dir: Path, study: OptimalStudy, summary: dict[str, Any], c
     write_json(out_dir / "summary.json", summary)
     t = _times(study, cfg.run_s)
     plot_vs_optimal(
-        t[OPTIMAL], {k: v for k, v in t.items() if k != OPTIMAL}, out_dir / "vs_optimal.png",
+        t[OPTIMAL],
+        {k: v for k, v in t.items() if k != OPTIMAL},
+        out_dir / "vs_optimal.png",
         title=f"{summary['scenario']}: {len(study.source)} runs, each controller against the optimum",
-    )  # fmt: skip
+    )
     plot_search_progress(
-        study.search.objective, study.search.round_t_recover_s, cfg.iterations // cfg.rounds,
+        study.search.objective,
+        study.search.round_t_recover_s,
+        cfg.iterations // cfg.rounds,
         out_dir / "search_progress.png",
-    )  # fmt: skip
+    )
 
 
 def write_demos(path: Path, study: OptimalStudy, target_alpha_rad: float) -> Path:
@@ -171,7 +202,14 @@ def write_demos(path: Path, study: OptimalStudy, target_alpha_rad: float) -> Pat
     p = study.scenario.params
     beats = np.asarray(m.recovered) & (np.nan_to_num(t_s, nan=np.inf) < t_best)
     demos = make_demos(
-        x_all, u_cmd, np.array([target_alpha_rad, 0.0, 0.0]), np.asarray(p.u_min_rad),
-        np.asarray(p.u_max_rad), t_s, m.recovered, beats, DT_S,
-    )  # fmt: skip
+        x_all,
+        u_cmd,
+        np.array([target_alpha_rad, 0.0, 0.0]),
+        np.asarray(p.u_min_rad),
+        np.asarray(p.u_max_rad),
+        t_s,
+        m.recovered,
+        beats,
+        DT_S,
+    )
     return save_demos(path, demos)

@@ -182,9 +182,15 @@ def make_search_fns(
     def resim_one(z, params, body0, delta0, v_switch):
         ctrl = make_scheduled_smc(z, v_switch, cfg.knot_dt_s)
         res = closed_loop(
-            controller=ctrl, params=params, x0=body0, reference_rad=reference_rad, key=jax.random.key(0),
-            n_steps=n_run, dt_s=DT_S, delta0_rad=delta0,
-        )  # fmt: skip
+            controller=ctrl,
+            params=params,
+            x0=body0,
+            reference_rad=reference_rad,
+            key=jax.random.key(0),
+            n_steps=n_run,
+            dt_s=DT_S,
+            delta0_rad=delta0,
+        )
         m, x_all = score(res, reference_rad, params, DT_S)
         return m, x_all, res.traj.u_cmd_rad, res.traj.delta_rad
 

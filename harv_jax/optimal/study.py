@@ -110,9 +110,15 @@ def run_output(
     """One run as the Monte Carlo records it (metrics, terminal error, decimated history), plus (x_all,
     u_cmd) at full rate. Jit/vmap it."""
     res = closed_loop(
-        controller=controller, params=params, x0=body0, reference_rad=reference_rad, key=key,
-        n_steps=n_steps, dt_s=DT_S, delta0_rad=delta0,
-    )  # fmt: skip
+        controller=controller,
+        params=params,
+        x0=body0,
+        reference_rad=reference_rad,
+        key=key,
+        n_steps=n_steps,
+        dt_s=DT_S,
+        delta0_rad=delta0,
+    )
     m, x_all = score(res, reference_rad, params, DT_S)
     n_term = max(1, int(round(TERMINAL_WINDOW_S / DT_S)))
     term = jnp.mean(tracking_errors(x_all[-n_term:], reference_rad), axis=0)
@@ -225,20 +231,31 @@ def optimal_study(
     brake = t_run["smc-brake"] <= t_run["smc"]
     v_switch = np.where(brake, BRAKE_SWITCH_FPS, NO_BRAKE_SWITCH_FPS).astype(np.asarray(reference).dtype)
     inputs = SearchInputs(
-        params=scenario.params, body0=scenario.body0, delta0_rad=jnp.asarray(scenario.delta0_rad),
+        params=scenario.params,
+        body0=scenario.body0,
+        delta0_rad=jnp.asarray(scenario.delta0_rad),
         v_switch_fps=jnp.asarray(v_switch),
-    )  # fmt: skip
-    say(f"[optimal] search: {n} runs, {cfg.iterations} gradient steps in {cfg.rounds} rounds, "
-        f"horizon {cfg.horizon_s:g} s, {cfg.n_knots} knots every {cfg.knot_dt_s:g} s ...")  # fmt: skip
+    )
+    say(
+        f"[optimal] search: {n} runs, {cfg.iterations} gradient steps in {cfg.rounds} rounds, "
+        f"horizon {cfg.horizon_s:g} s, {cfg.n_knots} knots every {cfg.knot_dt_s:g} s ..."
+    )
     t0 = time.perf_counter()
     res = search(inputs, reference, cfg, progress=say)
     wall["search"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     fn = _searched_fn(cfg.knot_dt_s, n_steps)
     searched, traj = jax.device_get(
-        fn(jnp.asarray(res.z), inputs.v_switch_fps, scenario.params, scenario.body0, inputs.delta0_rad,
-           scenario.keys, reference)
-    )  # fmt: skip
+        fn(
+            jnp.asarray(res.z),
+            inputs.v_switch_fps,
+            scenario.params,
+            scenario.body0,
+            inputs.delta0_rad,
+            scenario.keys,
+            reference,
+        )
+    )
     wall["resimulate"] = time.perf_counter() - t0
     names = list(outs)
     i_best, t_best = best_controller(outs, cfg.run_s)
@@ -252,6 +269,12 @@ def optimal_study(
     source = np.where(take, OPTIMAL, best)
     say(f"[optimal] searched control faster than the best controller on {int(take.sum())} of {n} runs")
     return OptimalStudy(
-        scenario=scenario, outputs={**outs, OPTIMAL: optimal}, source=source, best=best, search=res,
-        v_switch_fps=v_switch, trajectories=traj, wall_s=wall,
-    )  # fmt: skip
+        scenario=scenario,
+        outputs={**outs, OPTIMAL: optimal},
+        source=source,
+        best=best,
+        search=res,
+        v_switch_fps=v_switch,
+        trajectories=traj,
+        wall_s=wall,
+    )
