@@ -54,8 +54,11 @@ def episode_length(env: Any) -> int:
 
 def default_episode_metrics(info: dict[str, Any]) -> dict[str, jax.Array]:
     """Per-env scalar entries of ``info`` (top level), as float32; the generic episode metrics."""
-    return {k: jnp.asarray(v, jnp.float32) for k, v in info.items()
-            if k not in _RESERVED_INFO and not isinstance(v, dict) and jnp.ndim(v) == 0}  # fmt: skip
+    return {
+        k: jnp.asarray(v, jnp.float32)
+        for k, v in info.items()
+        if k not in _RESERVED_INFO and not isinstance(v, dict) and jnp.ndim(v) == 0
+    }
 
 
 def _first_step_keys(env: Any, env_params: Any, of_info: Callable[[Any], Any]) -> tuple[str, ...]:

@@ -37,8 +37,17 @@ KEEP = 2
 _NAME = re.compile(r"^ckpt_(\d{6,})\.msgpack$")
 _TMP = re.compile(r"^\.tmp-(\d+)-ckpt_\d{6,}\.msgpack$")
 #: Header fields covered by the checksum, in order (then every leaf's dtype, shape and bytes).
-_DIGEST_FIELDS = ("format", "version", "period", "env_steps", "config", "env_config", "history", "paths",
-                  "key_leaves")  # fmt: skip
+_DIGEST_FIELDS = (
+    "format",
+    "version",
+    "period",
+    "env_steps",
+    "config",
+    "env_config",
+    "history",
+    "paths",
+    "key_leaves",
+)
 
 
 class Restored(NamedTuple):

@@ -90,8 +90,13 @@ class Watchdog:
         poll_s: float = 5.0,
         backstop_s: float | None = 300.0,
     ) -> None:
-        for name, v in (("limit_s", limit_s), ("idle_s", idle_s), ("first_limit_s", first_limit_s),
-                        ("min_limit_s", min_limit_s), ("poll_s", poll_s)):  # fmt: skip
+        for name, v in (
+            ("limit_s", limit_s),
+            ("idle_s", idle_s),
+            ("first_limit_s", first_limit_s),
+            ("min_limit_s", min_limit_s),
+            ("poll_s", poll_s),
+        ):
             if v is not None and (not math.isfinite(v) or v < 0):
                 raise ValueError(f"{name} {v!r} must be a finite number >= 0")
         if poll_s <= 0:
@@ -178,8 +183,10 @@ class Watchdog:
                 if limit > 0 and self._since_beat_s >= limit:
                     reason = f"no progress for {self._since_beat_s:.0f} s (limit {limit:.0f} s)"
                 elif self.idle_s > 0 and self._idle_for_s >= self.idle_s:
-                    reason = (f"no CPU use for {self._idle_for_s:.0f} s while a period was running "
-                              "(deadlocked, not slow)")  # fmt: skip
+                    reason = (
+                        f"no CPU use for {self._idle_for_s:.0f} s while a period was running "
+                        "(deadlocked, not slow)"
+                    )
             if reason is not None:
                 self.stalled = reason
                 self._stop.set()
