@@ -81,8 +81,9 @@ def _prepare(run_dir: Path, out: Path | None, force: bool) -> Path:
     return prepare_out_dir(out, force)
 
 
-def build_report(run_dir: Path, out: Path | None = None, force: bool = False,
-                 report_cmd: str | None = None) -> tuple[Path, Path]:  # fmt: skip
+def build_report(
+    run_dir: Path, out: Path | None = None, force: bool = False, report_cmd: str | None = None
+) -> tuple[Path, Path]:
     """Write report.md and report.html for ``run_dir`` (into ``out``, default ``run_dir``).
 
     Args:

@@ -103,10 +103,11 @@ def mc_section(doc: Doc, summary: dict) -> None:
     doc.h(3, "Recovery and control activity")
     units = {b.get("safety_interventions_unit") for b in ctrls.values()} - {None}
     rows = tuple(
-        (f"{label} [{', '.join(sorted(units))}]", path, spec) if label == "safety interventions" and units
+        (f"{label} [{', '.join(sorted(units))}]", path, spec)
+        if label == "safety interventions" and units
         else (label, path, spec)
         for label, path, spec in MC_RECOVERY_ROWS + MC_HYBRID_ROWS
-    )  # fmt: skip
+    )
     doc.table(*controller_table(ctrls, rows))
     header, vs_rows = controller_table(ctrls, MC_VS_SMC_ROWS)
     if vs_rows:
@@ -179,12 +180,22 @@ def reconstruct_fly_command(metrics_doc: dict) -> str | None:
 
     if "controller" not in metrics_doc or "scenario" not in metrics_doc:
         return None
-    parts = ["harv-jax", "fly", "--controller", str(metrics_doc["controller"]), "--scenario",
-             str(metrics_doc["scenario"])]  # fmt: skip
+    parts = [
+        "harv-jax",
+        "fly",
+        "--controller",
+        str(metrics_doc["controller"]),
+        "--scenario",
+        str(metrics_doc["scenario"]),
+    ]
     ref = metrics_doc.get("reference_rad")
-    opts = (("--target-alpha", ref[0] if ref else None), ("--duration", metrics_doc.get("duration_s")),
-            ("--seed", metrics_doc.get("seed")), ("--switching", metrics_doc.get("switching")),
-            ("--spin-s", metrics_doc.get("spin_s")))  # fmt: skip
+    opts = (
+        ("--target-alpha", ref[0] if ref else None),
+        ("--duration", metrics_doc.get("duration_s")),
+        ("--seed", metrics_doc.get("seed")),
+        ("--switching", metrics_doc.get("switching")),
+        ("--spin-s", metrics_doc.get("spin_s")),
+    )
     if metrics_doc.get("aircraft") not in (None, DEFAULT_AIRCRAFT):
         opts += (("--aircraft", metrics_doc["aircraft"]),)
     for flag, v in opts:

@@ -7,11 +7,13 @@ from typing import Any
 from harv_jax.report.document import Doc
 
 #: Rows of the per-seed table: summary.json "seeds" name -> (label, format).
-SEED_ROWS = {"recovered": ("recovered (evaluation batch)", ".1%"),
-             "recovered_spin": ("recovered, spins", ".1%"),
-             "t_recover_mean_s": ("mean recovery time, not recovered at the run length [s]", ".2f"),
-             "t_recover_median_s": ("median recovery time [s]", ".2f"),
-             "tv_median_rad": ("median control TV [rad]", ".2f")}  # fmt: skip
+SEED_ROWS = {
+    "recovered": ("recovered (evaluation batch)", ".1%"),
+    "recovered_spin": ("recovered, spins", ".1%"),
+    "t_recover_mean_s": ("mean recovery time, not recovered at the run length [s]", ".2f"),
+    "t_recover_median_s": ("median recovery time [s]", ".2f"),
+    "tv_median_rad": ("median control TV [rad]", ".2f"),
+}
 
 
 def train_section(doc: Doc, summary: dict[str, Any]) -> None:
