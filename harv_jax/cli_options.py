@@ -40,11 +40,17 @@ REQUIRED_STATE_NAMES = ("V", "alpha", "beta", "p", "q", "r", "mu", "gamma")
 #: beyond any spin or tumble of this aircraft excluded, altitudes inside the atmosphere model (troposphere
 #: and lower stratosphere, 20 km).
 STATE_LIMITS = {
-    "V": (1.0, 3000.0, "ft/s"), "alpha": (-math.pi, math.pi, "rad"), "beta": (-1.5707, 1.5707, "rad"),
-    "p": (-10.0, 10.0, "rad/s"), "q": (-10.0, 10.0, "rad/s"), "r": (-10.0, 10.0, "rad/s"),
-    "mu": (-2 * math.pi, 2 * math.pi, "rad"), "gamma": (-math.pi / 2, math.pi / 2, "rad"),
-    "chi": (-2 * math.pi, 2 * math.pi, "rad"), "h": (0.0, 65_000.0, "ft"),
-}  # fmt: skip
+    "V": (1.0, 3000.0, "ft/s"),
+    "alpha": (-math.pi, math.pi, "rad"),
+    "beta": (-1.5707, 1.5707, "rad"),
+    "p": (-10.0, 10.0, "rad/s"),
+    "q": (-10.0, 10.0, "rad/s"),
+    "r": (-10.0, 10.0, "rad/s"),
+    "mu": (-2 * math.pi, 2 * math.pi, "rad"),
+    "gamma": (-math.pi / 2, math.pi / 2, "rad"),
+    "chi": (-2 * math.pi, 2 * math.pi, "rad"),
+    "h": (0.0, 65_000.0, "ft"),
+}
 
 
 def whole_number(text: str) -> int:

@@ -137,8 +137,9 @@ def check_simulate(duration_s: float, dt_s: float) -> None:
         )
     n_steps = round(steps)
     check_steps(n_steps, what, "shorten --duration or raise --dt")
-    check_memory(n_steps * SIMULATE_BYTES_PER_STEP, f"{what} ({n_steps:,} steps)",
-                 "shorten --duration or raise --dt")  # fmt: skip
+    check_memory(
+        n_steps * SIMULATE_BYTES_PER_STEP, f"{what} ({n_steps:,} steps)", "shorten --duration or raise --dt"
+    )
 
 
 def closed_loop_chunk_bytes(runs: int, n_steps: int) -> int:
@@ -214,8 +215,11 @@ def check_network(hidden_sizes: tuple[int, ...], num_seeds: int) -> None:
             raise UsageError(f"hidden_sizes[{i}] = {h} is wider than the {MAX_LAYER_WIDTH:,} allowed")
     weights = sum(a * b for a, b in zip(hidden_sizes, hidden_sizes[1:], strict=False)) + sum(hidden_sizes)
     need = 2 * num_seeds * weights * TRAIN_COPIES_PER_WEIGHT * BYTES_PER_FLOAT
-    check_memory(need, f"hidden_sizes {list(hidden_sizes)} x --seeds {num_seeds}",
-                 "use narrower hidden layers or fewer --seeds")  # fmt: skip
+    check_memory(
+        need,
+        f"hidden_sizes {list(hidden_sizes)} x --seeds {num_seeds}",
+        "use narrower hidden layers or fewer --seeds",
+    )
 
 
 def check_train(total_steps: int, num_envs: int, unroll: int, num_seeds: int, gradient_steps: int) -> None:
@@ -244,5 +248,8 @@ def check_train(total_steps: int, num_envs: int, unroll: int, num_seeds: int, gr
     need = (
         num_seeds * num_envs * (unroll * TRAIN_FLOATS_PER_TRANSITION + TRAIN_FLOATS_PER_ENV) * BYTES_PER_FLOAT
     )
-    check_memory(need, f"--num-envs {num_envs:,} x --unroll {unroll} x --seeds {num_seeds}",
-                 "lower --num-envs or --seeds")  # fmt: skip
+    check_memory(
+        need,
+        f"--num-envs {num_envs:,} x --unroll {unroll} x --seeds {num_seeds}",
+        "lower --num-envs or --seeds",
+    )

@@ -98,10 +98,15 @@ def default_aircraft_randomization(enabled: bool = True, dtype=None) -> Aircraft
 
     on = jnp.asarray(enabled, dtype=bool)
     return AircraftRandomization(
-        mass_on=on, mass_frac=f(0.10), inertia_frac=f(0.10),
-        aero_on=on, aero_damping_frac=f(0.20), aero_control_frac=f(0.15), aero_static_frac=f(0.10),
+        mass_on=on,
+        mass_frac=f(0.10),
+        inertia_frac=f(0.10),
+        aero_on=on,
+        aero_damping_frac=f(0.20),
+        aero_control_frac=f(0.15),
+        aero_static_frac=f(0.10),
         aero_basic_frac=f(0.05),
-    )  # fmt: skip
+    )
 
 
 def _sym(u01: jnp.ndarray) -> jnp.ndarray:

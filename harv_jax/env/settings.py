@@ -332,14 +332,24 @@ def build_spin_bank(config: EnvConfig, nested: dict[str, dict[str, Any]]) -> Any
     if not spin.randomize_aircraft:
         rand = default_randomization_params(False)
     return make_spin_bank(
-        jax.random.key(spin.bank_seed), spin.bank_size, base.aircraft, rand, spin.spin_s_min, spin.spin_s_max,
-        config.dt_s, config.h0_ft,
-    )  # fmt: skip
+        jax.random.key(spin.bank_seed),
+        spin.bank_size,
+        base.aircraft,
+        rand,
+        spin.spin_s_min,
+        spin.spin_s_max,
+        config.dt_s,
+        config.h0_ft,
+    )
 
 
 def bank_provenance(config: EnvConfig, nested: dict[str, dict[str, Any]]) -> dict[str, Any]:
     """What a stored spin bank was made from (for its npz)."""
     spin = spin_settings(nested.get("spin"))
-    return {"spin": dataclasses.asdict(spin), "dt_s": config.dt_s, "h0_ft": config.h0_ft,
-            "randomization": nested.get("randomization", {}),
-            "made_by": "harv_jax.task.spin_bank.make_spin_bank"}  # fmt: skip
+    return {
+        "spin": dataclasses.asdict(spin),
+        "dt_s": config.dt_s,
+        "h0_ft": config.h0_ft,
+        "randomization": nested.get("randomization", {}),
+        "made_by": "harv_jax.task.spin_bank.make_spin_bank",
+    }

@@ -7,8 +7,15 @@ is the default of ``--policy``; ``fast`` (our reward with energy braking, best o
 """
 
 #: Shipped policy name -> file stem.
-SHIPPED: dict[str, str] = {"teacher": "teacher", "fast": "fast", "recovery": "recovery", "paper-full": "full",
-                           "paper-partial": "partial", "full": "full", "partial": "partial"}  # fmt: skip
+SHIPPED: dict[str, str] = {
+    "teacher": "teacher",
+    "fast": "fast",
+    "recovery": "recovery",
+    "paper-full": "full",
+    "paper-partial": "partial",
+    "full": "full",
+    "partial": "partial",
+}
 #: The shipped policy that ``--policy`` defaults to.
 DEFAULT_SHIPPED = "teacher"
 SHIPPED_PREFIX = "shipped"
