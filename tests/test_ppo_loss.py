@@ -103,8 +103,8 @@ def test_loss_and_grads_match_brax(clip_value_eps, ent_coef):
         return ppo_loss(p, batch, nets, clip_eps=clip_eps, vf_coef=vf_coef, ent_coef=ent_coef,
                         clip_value_eps=clip_value_eps, normalize_advantage=True)  # fmt: skip
 
-    (l_b, m_b), g_b = jax.value_and_grad(brax_loss, has_aux=True)(params)
-    (l_o, m_o), g_o = jax.value_and_grad(our_loss, has_aux=True)(params)
+    (l_b, m_b), g_b = jax.jit(jax.value_and_grad(brax_loss, has_aux=True))(params)
+    (l_o, m_o), g_o = jax.jit(jax.value_and_grad(our_loss, has_aux=True))(params)
     # the case is not degenerate: some ratios are clipped, the loss is not tiny
     assert 0.05 < float(m_o["clip_fraction"]) < 0.95
     np.testing.assert_allclose(l_o, l_b, rtol=1e-5, atol=1e-6)
@@ -155,8 +155,9 @@ def test_feature_major_forward_equals_flax(seeds):
             return fn(jax.tree.map(take, params), obs[0])
         return jax.vmap(fn)(params, obs)
 
-    out_fm, out_flax = run(nets.policy_and_value), run(flax_path)
+    jrun = jax.jit(run, static_argnums=0)
+    out_fm, out_flax = jrun(nets.policy_and_value), jrun(flax_path)
     chex.assert_trees_all_close(out_fm, out_flax, rtol=1e-5, atol=1e-6)
-    (v_fm, g_fm), (v_flax, g_flax) = run(scalar(nets.policy_and_value)), run(scalar(flax_path))
+    (v_fm, g_fm), (v_flax, g_flax) = jrun(scalar(nets.policy_and_value)), jrun(scalar(flax_path))
     np.testing.assert_allclose(v_fm, v_flax, rtol=1e-5)
     chex.assert_trees_all_close(g_fm, g_flax, rtol=1e-4, atol=1e-5)
