@@ -39,9 +39,15 @@ FORMAT_NAME = "harv_jax.optimal.demos"
 FORMAT_VERSION = 1
 _TRAJ_KEYS = ("states_wind", "observations", "commands_rad", "actions")
 _ALL_KEYS = (
-    "format", "format_version", "dt_s", "reference_rad", *_TRAJ_KEYS, "t_recover_s", "recovered",
+    "format",
+    "format_version",
+    "dt_s",
+    "reference_rad",
+    *_TRAJ_KEYS,
+    "t_recover_s",
+    "recovered",
     "beats_best_controller",
-)  # fmt: skip
+)
 #: What reading a damaged or foreign file can raise (np.load of a zip, a .npy, a pickle, random bytes).
 _READ_ERRORS = (
     OSError,
@@ -128,10 +134,16 @@ def make_demos(
     cmd = np.asarray(commands_rad, np.float32)
     act = np.clip(command_to_action(np.clip(cmd, lo, hi), lo, hi), -1.0, 1.0).astype(np.float32)
     return Demos(
-        dt_s=float(dt_s), reference_rad=ref, states_wind=x, observations=obs, commands_rad=cmd, actions=act,
-        t_recover_s=np.asarray(t_recover_s, np.float32), recovered=np.asarray(recovered, bool),
+        dt_s=float(dt_s),
+        reference_rad=ref,
+        states_wind=x,
+        observations=obs,
+        commands_rad=cmd,
+        actions=act,
+        t_recover_s=np.asarray(t_recover_s, np.float32),
+        recovered=np.asarray(recovered, bool),
         beats_best_controller=np.asarray(beats_best_controller, bool),
-    )  # fmt: skip
+    )
 
 
 def save_demos(path: str | Path, demos: Demos) -> Path:
@@ -151,8 +163,15 @@ def _validate(d: dict, name: str) -> None:
     if x.ndim != 3 or x.shape[2] != 10 or x.shape[1] < 2:
         raise ValueError(f"demos {name!r}: states_wind has shape {list(x.shape)}, expected [N, T + 1, 10]")
     n, t = x.shape[0], x.shape[1] - 1
-    want = {"observations": (n, t, 11), "commands_rad": (n, t, 3), "actions": (n, t, 3), "t_recover_s": (n,),
-            "recovered": (n,), "beats_best_controller": (n,), "reference_rad": (3,)}  # fmt: skip
+    want = {
+        "observations": (n, t, 11),
+        "commands_rad": (n, t, 3),
+        "actions": (n, t, 3),
+        "t_recover_s": (n,),
+        "recovered": (n,),
+        "beats_best_controller": (n,),
+        "reference_rad": (3,),
+    }
     for k, shape in want.items():
         if tuple(np.shape(d[k])) != shape:
             raise ValueError(f"demos {name!r}: {k} has shape {list(np.shape(d[k]))}, expected {list(shape)}")

@@ -62,8 +62,16 @@ class PPOConfig:
 
 
 _FIELDS = {f.name: f for f in dataclasses.fields(PPOConfig)}
-_POSITIVE_INT = ("total_steps", "num_envs", "unroll", "epochs", "minibatches", "num_seeds", "num_periods",
-                 "checkpoint_every")  # fmt: skip
+_POSITIVE_INT = (
+    "total_steps",
+    "num_envs",
+    "unroll",
+    "epochs",
+    "minibatches",
+    "num_seeds",
+    "num_periods",
+    "checkpoint_every",
+)
 _POSITIVE_FLOAT = ("lr", "max_grad_norm", "clip_eps", "reward_scale")
 _NONNEG_FLOAT = ("clip_value_eps", "vf_coef", "ent_coef", "bc_coef", "bc_coef_end")
 #: Bounds of float settings beyond their sign: an Adam step above 1 or a log std outside these diverges.
@@ -142,8 +150,13 @@ def validate(cfg: PPOConfig) -> PPOConfig:
                 "set bc_coef > 0 in the preset's [ppo] table"
             )
     check_seed(cfg.seed)
-    check_train(cfg.total_steps, cfg.num_envs, cfg.unroll, cfg.num_seeds,
-                total_updates(cfg) * cfg.epochs * cfg.minibatches)  # fmt: skip
+    check_train(
+        cfg.total_steps,
+        cfg.num_envs,
+        cfg.unroll,
+        cfg.num_seeds,
+        total_updates(cfg) * cfg.epochs * cfg.minibatches,
+    )
     return cfg
 
 

@@ -19,15 +19,13 @@ episode start). It needs the env's time limit (``env.episode_steps`` or ``env.co
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from functools import partial
-from typing import Any, NamedTuple
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 import optax
-from flax import struct
-from jax.sharding import Mesh
 
 from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo import demos as demos_lib
@@ -44,77 +42,15 @@ from harv_jax.ppo.acting import (
 from harv_jax.ppo.config import PPOConfig
 from harv_jax.ppo.losses import DemoBatch, PPOBatch, compute_gae, ppo_loss, successor_values
 from harv_jax.ppo.networks import (
-    PPONetworks,
     PPOParams,
     gaussian_log_prob,
     make_ppo_networks,
     postprocess,
     sample_raw_action,
 )
+from harv_jax.ppo.train_state import Metrics, Rollout, Trainer, TrainingState
 
-Metrics = dict[str, jax.Array]
-
-
-@struct.dataclass
-class TrainingState:
-    """Everything that changes during training, for one seed (a leading [S] axis is added by vmap).
-
-    Attributes:
-        params: actor and critic parameters.
-        opt_state: optax Adam state.
-        normalizer: running observation statistics.
-        env_state: env state pytree, leading axis [N].
-        obs: [N, O] current observations.
-        episode_return: [N] undiscounted, unscaled return of the running episodes.
-        episode_length: [N] steps of the running episodes.
-        key: PRNG key of this learner.
-        update_step: [] int32 number of PPO updates done.
-    """
-
-    params: PPOParams
-    opt_state: Any
-    normalizer: obs_norm.RunningStats
-    env_state: Any
-    obs: jax.Array
-    episode_return: jax.Array
-    episode_length: jax.Array
-    key: jax.Array
-    update_step: jax.Array
-
-
-class Rollout(NamedTuple):
-    """One env step of the rollout, [T, N, ...] after the scan."""
-
-    obs: jax.Array  # network input (normalised) [O]
-    raw_action: jax.Array  # [A]
-    log_prob: jax.Array  # []
-    value: jax.Array  # [] V(obs)
-    reward: jax.Array  # [] unscaled env reward
-    termination: jax.Array  # []
-    truncation: jax.Array  # []
-    final_value: jax.Array  # [] V(final_obs), used where the episode ended
-    raw_obs: jax.Array  # [O] unnormalised observation (for the running statistics)
-    teacher_action: jax.Array | None = None  # [A] the env's teacher action at obs (behaviour cloning only)
-
-
-class Trainer(NamedTuple):
-    """What :func:`make_train` returns.
-
-    Attributes:
-        init: ``init(keys [S], env_params) -> TrainingState`` (jitted, sharded).
-        period: ``period(state, env_params) -> (state, metrics)`` (jitted once; metrics are [S] arrays).
-        networks: the actor/critic modules.
-        mesh: the device mesh.
-        state_shardings: shardings of the training state (for restoring checkpoints).
-        num_traces: number of times ``period`` has been traced (the no-recompile guard).
-    """
-
-    init: Callable[[jax.Array, Any], TrainingState]
-    period: Callable[[TrainingState, Any], tuple[TrainingState, Metrics]]
-    networks: PPONetworks
-    mesh: Mesh
-    state_shardings: Any
-    num_traces: Callable[[], int]
+__all__ = ["Metrics", "Rollout", "Trainer", "TrainingState", "make_optimizer", "make_train", "seed_keys"]
 
 
 def make_optimizer(cfg: PPOConfig) -> optax.GradientTransformation:
@@ -217,8 +153,11 @@ def make_train(
     ) -> tuple[TrainingState, Rollout, Metrics]:
         params, normalizer = state.params, state.normalizer
         zeros = {k: jnp.zeros((), jnp.float32) for k in info_keys}
-        ep0 = {"episodes": jnp.zeros((), jnp.float32), "return_sum": jnp.zeros((), jnp.float32),
-               "length_sum": jnp.zeros((), jnp.float32)}  # fmt: skip
+        ep0 = {
+            "episodes": jnp.zeros((), jnp.float32),
+            "return_sum": jnp.zeros((), jnp.float32),
+            "length_sum": jnp.zeros((), jnp.float32),
+        }
         ep0.update({f"info_{k}": v for k, v in zeros.items()})
 
         def step(carry: tuple, key: jax.Array) -> tuple[tuple, Rollout]:
@@ -265,9 +204,17 @@ def make_train(
         batch = jax.tree.map(lambda x: jax.lax.with_sharding_constraint(x, batch_sharding), batch)
         grad_fn = jax.value_and_grad(ppo_loss, has_aux=True)
         (_, metrics), grads = grad_fn(
-            params, batch, networks, clip_eps=cfg.clip_eps, vf_coef=cfg.vf_coef, ent_coef=cfg.ent_coef,
-            clip_value_eps=clip_value, normalize_advantage=cfg.normalize_advantage, demo=demo, **schedule,
-        )  # fmt: skip
+            params,
+            batch,
+            networks,
+            clip_eps=cfg.clip_eps,
+            vf_coef=cfg.vf_coef,
+            ent_coef=cfg.ent_coef,
+            clip_value_eps=clip_value,
+            normalize_advantage=cfg.normalize_advantage,
+            demo=demo,
+            **schedule,
+        )
         updates, opt_state = optimizer.update(grads, opt_state, params)
         params = optax.apply_updates(params, updates)
         metrics["grad_norm"] = optax.tree.norm(grads)
@@ -283,12 +230,18 @@ def make_train(
             traj.value, last_value, traj.final_value, traj.termination, traj.truncation
         )
         advantages, targets = compute_gae(
-            traj.reward * cfg.reward_scale, traj.value, next_values, traj.termination, traj.truncation,
-            cfg.gamma, cfg.gae_lambda,
-        )  # fmt: skip
+            traj.reward * cfg.reward_scale,
+            traj.value,
+            next_values,
+            traj.termination,
+            traj.truncation,
+            cfg.gamma,
+            cfg.gae_lambda,
+        )
         # [T, N, ...] -> env-major [N * T, ...] so that the sharded env axis stays the leading block.
-        data = PPOBatch(traj.obs, traj.raw_action, traj.log_prob, traj.value, advantages, targets,
-                        traj.teacher_action)  # fmt: skip
+        data = PPOBatch(
+            traj.obs, traj.raw_action, traj.log_prob, traj.value, advantages, targets, traj.teacher_action
+        )
         schedule = loss_schedule(state.update_step)
         data = jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1).reshape((n_batch,) + x.shape[2:]), data)
         demo_batches = None  # [epochs, minibatches, mb_size] pairs, normalised as the rollout's observations
@@ -328,8 +281,9 @@ def make_train(
     def period_one(
         state: TrainingState, env_params: Any, demo: DemoBatch | None = None
     ) -> tuple[TrainingState, Metrics]:
-        state, metrics = jax.lax.scan(lambda s, _: update(s, env_params, demo), state, None,
-                                      length=ppo_config.updates_per_period(cfg))  # fmt: skip
+        state, metrics = jax.lax.scan(
+            lambda s, _: update(s, env_params, demo), state, None, length=ppo_config.updates_per_period(cfg)
+        )
         out = {k: jnp.mean(v) for k, v in metrics.items() if not k.startswith("ep_")}
         ep = {k[3:]: jnp.sum(v) for k, v in metrics.items() if k.startswith("ep_")}
         n_ep = ep["episodes"]

@@ -5,6 +5,7 @@ Modules: ``presets`` (the recipe files shipped in ``presets/*.toml``, looked up 
 of a run; the run folder's ``config.json``), ``demos`` (demonstrations from ``harv-jax optimal``
 cloned by the run), ``resume`` (how ``--resume`` continues a run),
 ``eval_hook`` (evaluation during training), ``outputs`` (metrics CSV, policies, spin bank, summary),
-``tensorboard`` (scalars per period), ``stall`` (the watchdog's stall handler). ``harv_jax.commands.train``
-parses the command line and calls these.
+``tensorboard`` (scalars per period), ``stall`` (the watchdog's stall handler), ``run`` (a whole training
+run from parsed options).
+``harv_jax.commands.train`` parses the command line and calls ``run``.
 """

@@ -79,12 +79,22 @@ def export_seed_policies(
     params, normalizer = jax.device_get((state.params, state.normalizer))
     pols = []
     for s in range(cfg.num_seeds):
-        meta = {"seed": s, "config": ppo_config.to_dict(cfg), "env_steps": env_steps,
-                "normalize_observations": cfg.normalize_observations, "loop": loop}  # fmt: skip
+        meta = {
+            "seed": s,
+            "config": ppo_config.to_dict(cfg),
+            "env_steps": env_steps,
+            "normalize_observations": cfg.normalize_observations,
+            "loop": loop,
+        }
         if demos is not None:
             meta["demos"] = demos
-        pol = make_policy(select_seed(params, s), select_seed(normalizer, s), trainer.networks,
-                          cfg.normalize_observations, meta)  # fmt: skip
+        pol = make_policy(
+            select_seed(params, s),
+            select_seed(normalizer, s),
+            trainer.networks,
+            cfg.normalize_observations,
+            meta,
+        )
         policy_api.export_npz(pdir / f"policy_seed{s}.npz", pol)
         pols.append(pol)
     return pols
@@ -154,12 +164,19 @@ def run_summary(
     ``episode/final_omega_radps``, ``episode/terminated``: mean over seeds in the first and last period and
     the std over seeds in the last.
     """
-    summary: dict[str, Any] = {"out": str(out_dir), "periods": len(history), "best_seed": best_seed,
-                               "env_steps_per_seed": history[-1]["env_steps"] if history else 0}  # fmt: skip
+    summary: dict[str, Any] = {
+        "out": str(out_dir),
+        "periods": len(history),
+        "best_seed": best_seed,
+        "env_steps_per_seed": history[-1]["env_steps"] if history else 0,
+    }
     evals = [row for row in history if "eval/recovered" in row]
     if evals:
-        summary["eval"] = {k: np.asarray(v, np.float64).reshape(-1).tolist() for k, v in evals[-1].items()
-                           if k.startswith("eval/")}  # fmt: skip
+        summary["eval"] = {
+            k: np.asarray(v, np.float64).reshape(-1).tolist()
+            for k, v in evals[-1].items()
+            if k.startswith("eval/")
+        }
         summary["eval"]["env_steps"] = evals[-1]["env_steps"]
         summary["eval"]["wall_s"] = evals[-1]["wall_s"]
         if target_recovery is not None:
@@ -170,15 +187,22 @@ def run_summary(
         if history and k in history[-1]:
             first = np.asarray(history[0][k], np.float64).reshape(-1)
             last = np.asarray(history[-1][k], np.float64).reshape(-1)
-            summary[k] = {"first_mean": _nanstat(np.nanmean, first), "last_mean": _nanstat(np.nanmean, last),
-                          "last_std": _nanstat(np.nanstd, last)}  # fmt: skip
+            summary[k] = {
+                "first_mean": _nanstat(np.nanmean, first),
+                "last_mean": _nanstat(np.nanmean, last),
+                "last_std": _nanstat(np.nanstd, last),
+            }
     return summary
 
 
 #: Evaluation entries summarised over seeds (``summary.json`` "seeds"), by their short name.
-SEED_METRICS = {"recovered": "eval/recovered", "recovered_spin": "eval/recovered_spin",
-                "t_recover_mean_s": "eval/t_recover_mean_s", "t_recover_median_s": "eval/t_recover_median_s",
-                "tv_median_rad": "eval/tv_median_rad"}  # fmt: skip
+SEED_METRICS = {
+    "recovered": "eval/recovered",
+    "recovered_spin": "eval/recovered_spin",
+    "t_recover_mean_s": "eval/t_recover_mean_s",
+    "t_recover_median_s": "eval/t_recover_median_s",
+    "tv_median_rad": "eval/tv_median_rad",
+}
 
 
 def seed_summary(row: dict[str, Any], target_recovery: float | None = None) -> dict[str, Any]:
@@ -194,8 +218,11 @@ def seed_verdict(seeds: dict[str, Any]) -> str:
     """One line: which seeds meet the recovery bar on the evaluation batch, with the IQMs."""
     rec = seeds["per_seed"].get("recovered", [])
     ok = seeds["seeds_meeting_bar"]
-    head = (f"all {len(rec)} seeds" if len(ok) == len(rec) else
-            f"{len(ok)} of {len(rec)} seeds ({', '.join(map(str, ok)) or 'none'})")  # fmt: skip
+    head = (
+        f"all {len(rec)} seeds"
+        if len(ok) == len(rec)
+        else f"{len(ok)} of {len(rec)} seeds ({', '.join(map(str, ok)) or 'none'})"
+    )
     line = f"{head} recover >= {seeds['bar']:.1%} of the evaluation batch"
     parts = []
     for name, unit in (("recovered", ""), ("t_recover_mean_s", " s")):

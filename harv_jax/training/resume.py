@@ -81,8 +81,10 @@ def resume_plan(run_dir: Path) -> ResumePlan:
             f"no checkpoint found in {str(ckpt_dir)!r} and {str(record_path)!r} is unreadable "
             f"({type(e).__name__}); start the run again with --out {str(run_dir)!r} --force"
         ) from None
-    msg = (f"no checkpoint in {ckpt_dir} (the run stopped before its first one): restarting it from "
-           "period 0 with the configuration in its config.json")  # fmt: skip
+    msg = (
+        f"no checkpoint in {ckpt_dir} (the run stopped before its first one): restarting it from "
+        "period 0 with the configuration in its config.json"
+    )
     return ResumePlan(cfg, env_table, False, 0, 0, init_policy, (msg,), _demos_sha256(run_dir))
 
 

@@ -43,8 +43,10 @@ def stall_handler(out_dir: Path, console: Any) -> Callable[[str], None]:
             pass
         files = checkpoint.checkpoint_paths(out_dir / "checkpoints")
         kept = f"its newest checkpoint {files[-1].name} is intact" if files else "no checkpoint written yet"
-        line = (f"harv-jax: error: training stalled: {reason}; {kept}: continue with "
-                f"harv-jax train --resume {out_dir}")  # fmt: skip
+        line = (
+            f"harv-jax: error: training stalled: {reason}; {kept}: continue with "
+            f"harv-jax train --resume {out_dir}"
+        )
         print(line, file=sys.stderr, flush=True)
         os._exit(STALL_EXIT_CODE)
 
