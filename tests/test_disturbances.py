@@ -235,11 +235,13 @@ def test_filter_suffix_in_the_registry():
         with pytest.raises(UsageError):
             parse_controllers(bad)
     # the filtered SMC from the plant's initial deflections: its state carries them to the wrapped SMC
-    ctrl = build_controller("smc+lp2", ControllerOptions())
+    ctrl, plain = build_controller("smc+lp2", ControllerOptions()), build_controller("smc")
     delta0 = jnp.array([-0.1, 0.05, 0.02])
-    filtered = closed_loop(ctrl, harv(), X0, REF, jax.random.key(0), 1, delta0_rad=delta0)
-    plain = closed_loop(build_controller("smc"), harv(), X0, REF, jax.random.key(0), 1, delta0_rad=delta0)
-    u_f, u_p = filtered.final_ctrl_state.inner.u_prev_rad, plain.final_ctrl_state.u_prev_rad
+    start_f = ctrl.init(harv()).replace(u_prev_rad=delta0)  # as closed_loop starts any controller
+    start_p = plain.init(harv()).replace(u_prev_rad=delta0)
+    _, filtered, _ = ctrl.apply(start_f, X0, REF, jax.random.key(0))  # one step, eager
+    _, plain_state, _ = plain.apply(start_p, X0, REF, jax.random.key(0))
+    u_f, u_p = filtered.inner.u_prev_rad, plain_state.u_prev_rad
     np.testing.assert_allclose(np.asarray(u_f), np.asarray(u_p), atol=1e-5)  # first step: same input
     assert ctrl.init(harv()).u_prev_rad.shape == (3,)
 
