@@ -59,6 +59,19 @@ def phase_lag_rad(cutoff_hz: float, order: int, f_hz: float) -> float:
     return math.atan(w) if order == 1 else math.atan2(math.sqrt(2.0) * w, 1 - w * w)
 
 
+def initial_command(inner: object, dtype) -> jnp.ndarray:
+    """A wrapped controller state's ``u_prev_rad`` [3] (zeros if it has none): the wrapper's own at init."""
+    return getattr(inner, "u_prev_rad", jnp.zeros((3,), dtype))
+
+
+def inner_at_start(inner: object, first: jnp.ndarray, u_prev_rad: jnp.ndarray) -> object:
+    """The wrapped state with the wrapper's ``u_prev_rad`` handed over at the first step (``closed_loop``
+    starts the wrapper's at the plant's deflections); unchanged for a state without one."""
+    if not hasattr(inner, "u_prev_rad"):
+        return inner
+    return inner.replace(u_prev_rad=jnp.where(first, u_prev_rad, inner.u_prev_rad))
+
+
 @struct.dataclass
 class FilteredState:
     """The wrapped controller's state, the filter's direct-form-II-transposed memory [order, 8], whether
@@ -78,7 +91,7 @@ def with_measurement_filter(controller: Controller, cutoff_hz: float, order: int
     def init(params):
         inner = controller.init(params)
         dtype = params.mass_slug.dtype
-        u_prev = getattr(inner, "u_prev_rad", jnp.zeros((3,), dtype))
+        u_prev = initial_command(inner, dtype)
         z0 = jnp.zeros((order, NUM_FILTERED), dtype)
         return FilteredState(inner=inner, z=z0, started=jnp.asarray(False), u_prev_rad=u_prev)
 
@@ -95,10 +108,7 @@ def with_measurement_filter(controller: Controller, cutoff_hz: float, order: int
             for i in range(order)
         ]
         z_new = jnp.stack(rows)
-        inner = state.inner
-        if hasattr(inner, "u_prev_rad"):
-            first = jnp.logical_not(state.started)
-            inner = inner.replace(u_prev_rad=jnp.where(first, state.u_prev_rad, inner.u_prev_rad))
+        inner = inner_at_start(state.inner, jnp.logical_not(state.started), state.u_prev_rad)
         u, inner, info = controller.apply(inner, x_wind.at[:NUM_FILTERED].set(y), reference_rad, key)
         new = FilteredState(inner=inner, z=z_new, started=jnp.asarray(True), u_prev_rad=u.astype(dtype))
         return u, new, info

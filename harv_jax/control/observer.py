@@ -29,6 +29,7 @@ from flax import struct
 
 from harv_jax.aircraft.aero import wrap_angle_rad
 from harv_jax.control.base import Controller
+from harv_jax.control.filters import initial_command, inner_at_start
 from harv_jax.dynamics.plant import plant_step
 from harv_jax.dynamics.state import WIND_INDEX, from_wind
 from harv_jax.task.spec import DT_S
@@ -75,7 +76,7 @@ def with_state_observer(controller: Controller, bandwidth_hz: float) -> Controll
     def init(params):
         inner = controller.init(params)
         dtype = params.mass_slug.dtype
-        u_prev = getattr(inner, "u_prev_rad", jnp.zeros((3,), dtype))
+        u_prev = initial_command(inner, dtype)
         return ObserverState(
             inner=inner,
             x_est=jnp.zeros((10,), dtype),
@@ -98,9 +99,7 @@ def with_state_observer(controller: Controller, bandwidth_hz: float) -> Controll
         x_corr = x_corr.at[mu].set(wrap_angle_rad(x_corr[mu]))
         x_est = jnp.where(first, x_wind, x_corr)
         delta_est = jnp.where(first, delta_est, delta_next)
-        inner = state.inner
-        if hasattr(inner, "u_prev_rad"):
-            inner = inner.replace(u_prev_rad=jnp.where(first, state.u_prev_rad, inner.u_prev_rad))
+        inner = inner_at_start(state.inner, first, state.u_prev_rad)
         u, inner, info = controller.apply(inner, x_est, reference_rad, key)
         new = state.replace(
             inner=inner,
