@@ -54,6 +54,24 @@ def heavy():
     unregister_aircraft(HEAVY)
 
 
+WIDE = "harv-wide"
+
+
+def harv_wide() -> AircraftParams:
+    """The HARV with a stabilator up to +0.3 rad and a rudder limited to +-0.4 rad."""
+    p = harv()
+    return p.replace(
+        u_min_rad=p.u_min_rad.at[2].set(-0.4), u_max_rad=p.u_max_rad.at[0].set(0.3).at[2].set(0.4)
+    )
+
+
+@pytest.fixture
+def wide():
+    register_aircraft(WIDE, harv_wide)
+    yield WIDE
+    unregister_aircraft(WIDE)
+
+
 def make_hold() -> Controller:
     """A controller that always commands a little nose-down stabilator (no state, no diagnostics)."""
 
@@ -186,3 +204,37 @@ def test_train_uses_the_registered_aircraft(heavy, monkeypatch, capsys, tmp_path
         last = _runs(out / "metrics.csv")[-1]
         rows[name] = {k: v for k, v in last.items() if k not in ("wall_s", "period_s")}
     assert rows["harv"].keys() == rows[heavy].keys() and rows["harv"] != rows[heavy]
+
+
+def test_simulate_checks_the_controls_against_the_chosen_aircraft(wide, monkeypatch, capsys, tmp_path):
+    """de = 0.2 rad is past the HARV's stabilator limit and within the wide one's; dr = 0.45 rad the other
+    way round. ``--dt 0`` fails after the control check, so a control that passes flies nothing."""
+    out = tmp_path / "never"
+    cases = [
+        ("harv", "de=0.2", "control de=0.2 rad is outside [-0.436, 0.175]"),
+        (wide, "de=0.2", "--dt 0.0 must be in (0, 0.05] s"),
+        (wide, "de=0.35", "control de=0.35 rad is outside [-0.436, 0.3]"),
+        ("harv", "dr=0.45", "--dt 0.0 must be in (0, 0.05] s"),
+        (wide, "dr=-0.45", "control dr=-0.45 rad is outside [-0.4, 0.4]"),
+    ]
+    for name, controls, message in cases:
+        args = ("--aircraft", name, "--controls", controls, "--dt", "0", "--out", out)
+        code, _, err = cli_run(monkeypatch, capsys, "simulate", *args)
+        assert (code, err) == (2, f"harv-jax: error: {message}\n"), (name, controls)
+    assert not out.exists()
+    args = ("--controls", "de=0.3,dr=0.4", "--duration", "0.05", "--out", out)
+    code, stdout, err = cli_run(monkeypatch, capsys, "simulate", "--aircraft", wide, *args)
+    assert code == 0, err
+    assert "6 rows" in stdout and (out / "trajectory.csv").exists()
+
+
+def test_the_spin_bank_records_its_aircraft(heavy):
+    from harv_jax.env.settings import bank_provenance
+
+    nested = {"spin": {"reset_prob": 0.5}, "randomization": {}}
+    default = bank_provenance(EnvConfig(), nested)
+    other = bank_provenance(EnvConfig(aircraft=heavy), nested)
+    assert default["aircraft"] == "harv" and other["aircraft"] == heavy
+    assert {k: v for k, v in other.items() if k != "aircraft"} == {
+        k: v for k, v in default.items() if k != "aircraft"
+    }

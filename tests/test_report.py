@@ -181,6 +181,59 @@ def test_compare_dir_report_to_other_out_dir(monkeypatch, capsys, tmp_path):
     assert "<td>recovery time [s]</td><td>12.5</td>" in page
     assert "<td>constraint violations | &lt;max&gt;</td>" in page  # escaped pipe and HTML
     assert base64.b64encode(png).decode() in page
+    # an older compare.json records no aircraft: the settings table says so
+    assert _md_table_rows(md, "| setting | value |") == {"seed": ["3"], "aircraft": ["–"]}
+
+
+def _robustness(aircraft: str | None) -> dict:
+    """A robustness.json of one controller and one disturbance swept over two levels."""
+    rows = [
+        {"level": lv, "recovery_rate": r, "t_recover_mean_nr_at_run_s": 20.0, "control_tv_mean_rad": 7.0}
+        for lv, r in ((0.5, 1.0), (1.0, 0.5))
+    ]
+    doc = {
+        "runs": 64, "seed": 2, "duration_s": 60.0, "target_alpha_rad": 0.349, "margin_recovery": 0.9,
+        "controllers": ["smc"], "command": "harv-jax robustness --runs 64 --seed 2",
+        "disturbances": {"noise": {"option": "--noise-scale", "unit": "x", "levels": [0.5, 1.0],
+                                   "controllers": {"smc": {"margin": 0.5, "rows": rows}}}},
+    }  # fmt: skip
+    return doc if aircraft is None else {**doc, "aircraft": aircraft}
+
+
+def test_compare_and_robustness_sections_name_the_aircraft(monkeypatch, capsys, tmp_path):
+    """compare.json and robustness.json record the aircraft: the report states it (older files: not)."""
+    run = tmp_path / "study"
+    cmp_dir, rob_dir, old_dir = run / "compare", run / "robustness", run / "robustness_old"
+    for d in (cmp_dir, rob_dir, old_dir):
+        d.mkdir(parents=True)
+    table = "| metric | smc |\n|---|---:|\n| recovery time [s] | 18.2 |\n"
+    (cmp_dir / "compare_metrics.md").write_text(table)
+    cmp_doc = {
+        "command": "harv-jax compare --aircraft harv-heavy", "controllers": ["smc", "hybrid"],
+        "target_alpha_rad": 0.349, "duration_s": 60.0, "spin_s": 30.0, "seed": 0, "aircraft": "harv-heavy",
+        "disturbances": {"active": []}, "rows": [],
+    }  # fmt: skip
+    (cmp_dir / "compare.json").write_text(json.dumps(cmp_doc))
+    (rob_dir / "robustness.json").write_text(json.dumps(_robustness("harv-heavy")))
+    (old_dir / "robustness.json").write_text(json.dumps(_robustness(None)))
+    code, _, err = _run(monkeypatch, capsys, run)
+    assert code == 0, err
+    md = (run / "report.md").read_text()
+    cmp_md = md.split("## compare: controller comparison")[1].split("\n## ")[0]
+    assert _md_table_rows(cmp_md, "| setting | value |") == {
+        "controllers": ["smc, hybrid"],
+        "target alpha [rad]": ["0.349"],
+        "duration [s]": ["60"],
+        "spin before engagement [s]": ["30"],
+        "seed": ["0"],
+        "aircraft": ["harv-heavy"],
+        "disturbances": ["none"],
+    }
+    assert "| recovery time [s] | 18.2 |" in cmp_md  # compare_metrics.md follows, as it is
+    rob_md = md.split("## robustness: robustness margins")[1].split("\n## ")[0]
+    assert "Aircraft harv-heavy; 64 runs per level, seed 2, 60 s;" in rob_md
+    old_md = md.split("## robustness_old: robustness margins")[1].split("\n## ")[0]
+    assert "\n64 runs per level, seed 2, 60 s;" in old_md and "ircraft" not in old_md
 
 
 def test_quickstart_dir_with_subdirs_and_envelope(monkeypatch, capsys, tmp_path):

@@ -52,15 +52,18 @@ def parse_assignments(text: str, allowed: dict[str, float], what: str) -> dict[s
     return out
 
 
-def validate_controls(controls: dict[str, float]) -> None:
-    """Raise UsageError if a deflection is outside its position limit."""
-    from harv_jax.aircraft.params import U_MAX_RAD, U_MIN_RAD
+def validate_controls(controls: dict[str, float], aircraft: str | None = None) -> None:
+    """Raise UsageError if a deflection is outside the position limit (``u_min_rad``/``u_max_rad``) of
+    ``aircraft``, a name of ``harv_jax.aircraft.registry`` (None: the default); compared in the limits'
+    dtype, the one the simulation flies."""
+    from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT, get_aircraft
 
+    params = get_aircraft(aircraft or DEFAULT_AIRCRAFT)
+    lo, hi = np.asarray(params.u_min_rad), np.asarray(params.u_max_rad)
     for i, name in enumerate(("de", "da", "dr")):
-        if not U_MIN_RAD[i] <= controls[name] <= U_MAX_RAD[i]:
-            raise UsageError(
-                f"control {name}={controls[name]} rad is outside [{U_MIN_RAD[i]}, {U_MAX_RAD[i]}]"
-            )
+        v = np.asarray(controls[name], lo.dtype)
+        if not lo[i] <= v <= hi[i]:
+            raise UsageError(f"control {name}={controls[name]} rad is outside [{lo[i]:.6g}, {hi[i]:.6g}]")
 
 
 def run_simulate(
@@ -116,7 +119,7 @@ def register(app: typer.Typer) -> None:
         s = parse_assignments(state, DEFAULT_STATE, "state")
         c = parse_assignments(controls, DEFAULT_CONTROLS, "control")
         validate_state(s)
-        validate_controls(c)
+        validate_controls(c, aircraft_name)
         if not (math.isfinite(duration) and duration > 0):
             raise UsageError(f"--duration {duration} must be a positive number of seconds")
         if not (math.isfinite(dt) and 0 < dt <= 0.05):

@@ -58,6 +58,7 @@ ENV_RANGES: dict[str, tuple[float, float] | None] = {
     "h0_ft": (1.0, 65_000.0),
     "h_floor_ft": (-1e9, 65_000.0),
     "discount": (1e-6, 1.0),
+    "observe_engage_airspeed": None,
 }
 
 #: Allowed range and length (None: scalar) of every reward field, as ``RewardParams`` declares them.
@@ -344,10 +345,12 @@ def build_spin_bank(config: EnvConfig, nested: dict[str, dict[str, Any]]) -> Any
 
 
 def bank_provenance(config: EnvConfig, nested: dict[str, dict[str, Any]]) -> dict[str, Any]:
-    """What a stored spin bank was made from (for its npz)."""
+    """What a stored spin bank was made from (for its npz): the ``[spin]`` settings, the nominal aircraft's
+    name (``harv_jax.aircraft.registry``), the step, the start altitude and the ``[randomization]`` table."""
     spin = spin_settings(nested.get("spin"))
     return {
         "spin": dataclasses.asdict(spin),
+        "aircraft": config.aircraft,
         "dt_s": config.dt_s,
         "h0_ft": config.h0_ft,
         "randomization": nested.get("randomization", {}),

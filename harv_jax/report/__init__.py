@@ -7,7 +7,8 @@
 
 Recognized content, in RUN_DIR and its sub-directories (two levels, e.g. a ``quickstart`` dir's
 ``compare/`` and ``mc/``): ``summary.json`` of ``harv-jax mc`` (tables with one column per controller),
-``envelope.json`` of ``harv-jax envelope`` (the grid and a table per controller), ``metrics.json`` of
+``compare.json`` of ``harv-jax compare`` (its settings, the aircraft among them), ``envelope.json`` of
+``harv-jax envelope`` (the grid and a table per controller), ``metrics.json`` of
 ``harv-jax fly`` (the run's settings and scalar metrics), any other ``*.md`` (e.g. ``compare_metrics.md``
 of ``harv-jax compare``: included as it is), every ``*.png`` (linked from report.md, embedded as base64 in
 report.html) and ``*.csv`` / ``*.npz`` (listed as data files). The commands and seeds that produced the

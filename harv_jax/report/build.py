@@ -9,7 +9,7 @@ from harv_jax.errors import UsageError
 from harv_jax.report.document import Doc, to_html, to_markdown
 from harv_jax.report.robustness_section import robustness_section
 from harv_jax.report.scan import MAX_DEPTH, REPORT_FILES, Section, provenance, run_kind, scan
-from harv_jax.report.sections import envelope_section, fly_section, mc_section
+from harv_jax.report.sections import compare_section, envelope_section, fly_section, mc_section
 from harv_jax.report.train_section import train_section
 
 
@@ -42,6 +42,8 @@ def build_document(run_dir: Path, sections: list[Section], report_cmd: str) -> D
             mc_section(doc, sec.jsons["summary.json"])
         if "summary.json" in sec.jsons and "seeds" in sec.jsons["summary.json"]:
             train_section(doc, sec.jsons["summary.json"])
+        if "compare.json" in sec.jsons:
+            compare_section(doc, sec.jsons["compare.json"])
         if "envelope.json" in sec.jsons:
             envelope_section(doc, sec.jsons["envelope.json"])
         if "metrics.json" in sec.jsons and "metrics" in sec.jsons["metrics.json"]:

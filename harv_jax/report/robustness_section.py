@@ -12,12 +12,14 @@ def _cell(v: Any, spec: str) -> str:
 
 
 def robustness_section(doc: Doc, rob: dict[str, Any]) -> None:
-    """Margins per controller and disturbance, then per disturbance a table of every level."""
+    """Margins per controller and disturbance, then per disturbance a table of every level; the opening
+    sentence names the aircraft when robustness.json records it."""
     ctrls = rob["controllers"]
+    aircraft = f"Aircraft {rob['aircraft']}; " if rob.get("aircraft") is not None else ""
     doc.p(
-        f"{rob['runs']} runs per level, seed {rob['seed']}, {rob['duration_s']:g} s; the margin is the "
-        f"largest level of the sweep up to which every level recovers at least {rob['margin_recovery']:.0%} "
-        "of the runs."
+        f"{aircraft}{rob['runs']} runs per level, seed {rob['seed']}, {rob['duration_s']:g} s; the margin is "
+        "the largest level of the sweep up to which every level recovers at least "
+        f"{rob['margin_recovery']:.0%} of the runs."
     )
     dists = rob["disturbances"]
     header = ["controller", *[f"{n} margin [{d['unit']}]" for n, d in dists.items()]]

@@ -1,5 +1,6 @@
-"""The report's sections: tables of a ``harv-jax mc`` summary.json, an ``envelope`` envelope.json and a
-``fly`` metrics.json, read through the layout of ``harv_jax.evaluation.summary``."""
+"""The report's sections: tables of a ``harv-jax mc`` summary.json, a ``compare`` compare.json, an
+``envelope`` envelope.json and a ``fly`` metrics.json, read through the layout of
+``harv_jax.evaluation.summary``."""
 
 from __future__ import annotations
 
@@ -124,6 +125,22 @@ def mc_section(doc: Doc, summary: dict) -> None:
     doc.table(*controller_table(ctrls, MC_OUTCOME_ROWS))
     doc.h(3, "Wall time (compile and run separately)")
     doc.table(*controller_table(ctrls, WALL_ROWS))
+
+
+def compare_section(doc: Doc, cmp: dict) -> None:
+    """Settings of a ``harv-jax compare`` compare.json (its metrics table is compare_metrics.md, included
+    as it is); a setting the file does not record is left out, the aircraft shown as '–'."""
+    spin_s = cmp.get("spin_s")
+    settings = [
+        ("controllers", ", ".join(cmp["controllers"]) if isinstance(cmp.get("controllers"), list) else None),
+        ("target alpha [rad]", fmt(cmp.get("target_alpha_rad")) if "target_alpha_rad" in cmp else None),
+        ("duration [s]", fmt(cmp.get("duration_s")) if "duration_s" in cmp else None),
+        ("spin before engagement [s]", fmt(spin_s) if spin_s is not None else None),
+        ("seed", str(cmp["seed"]) if cmp.get("seed") is not None else None),
+        ("aircraft", str(cmp.get("aircraft", "–"))),
+        ("disturbances", _disturbances(cmp["disturbances"]) if "disturbances" in cmp else None),
+    ]
+    doc.table(["setting", "value"], [(k, v) for k, v in settings if v is not None], numeric=False)
 
 
 def envelope_section(doc: Doc, env: dict) -> None:
