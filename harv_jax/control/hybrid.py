@@ -47,6 +47,7 @@ from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
 from harv_jax.control.gate import GateGains, certificate_holds, default_gate_gains
 from harv_jax.control.registry import DEFAULT_ZETA
+from harv_jax.control.rl import engage_step
 from harv_jax.control.safety import cap_authority, filter_command, limit_box
 from harv_jax.control.scheduling import (
     SimplexGains,
@@ -180,12 +181,15 @@ class HybridConfig:
         smc: SMCConfig of the feedback term.
         supervisor: enable the fallback supervisor.
         window_steps: length of the supervisor's intervention window, steps.
+        engage_airspeed: the policy takes 12 observations, the 12th the airspeed of the first observation
+            (``harv_jax.control.rl.engage_step``).
     """
 
     schedule: ZetaScheduleName = DEFAULT_ZETA
     smc: SMCConfig = SMCConfig()
     supervisor: bool = True
     window_steps: int = 100
+    engage_airspeed: bool = False
 
     def __post_init__(self) -> None:
         if self.schedule not in ZETA_SCHEDULES:
@@ -207,6 +211,8 @@ class HybridState:
         supervisor: SupervisorState.
         simplex: SimplexState of the ``simplex`` schedule.
         interventions: int32 [3] per-channel count of steps the filter changed the command.
+        v_engage_fps: airspeed of the first observation, ft/s (used by a policy that observes it).
+        engaged: whether ``apply`` has run.
     """
 
     params: AircraftParams
@@ -217,6 +223,8 @@ class HybridState:
     supervisor: SupervisorState
     simplex: SimplexState
     interventions: jnp.ndarray
+    v_engage_fps: jnp.ndarray
+    engaged: jnp.ndarray
 
 
 def make_hybrid(
@@ -259,12 +267,18 @@ def make_hybrid(
             supervisor=supervisor_init(cfg.window_steps, dtype),
             simplex=simplex_init(dtype),
             interventions=jnp.zeros((3,), jnp.int32),
+            v_engage_fps=jnp.zeros((), dtype),
+            engaged=jnp.asarray(False),
         )
 
     def apply(state: HybridState, x_wind: jnp.ndarray, reference_rad: jnp.ndarray, key: jax.Array):
         del key  # deterministic
         params = state.params
-        a = jnp.clip(act(observation(x_wind, reference_rad)), -1.0, 1.0)
+        obs = observation(x_wind, reference_rad)
+        v_engage = state.v_engage_fps
+        if cfg.engage_airspeed:
+            obs, v_engage = engage_step(obs, state.v_engage_fps, state.engaged)
+        a = jnp.clip(act(obs), -1.0, 1.0)
         u_rl_raw = action_to_command(a, params.u_min_rad, params.u_max_rad).astype(state.u_prev_rad.dtype)
         u_rl, cap_active = cap_authority(u_rl_raw, params, g.authority_frac)
         # decided before u_fb: in fallback the SMC flies without the policy
@@ -308,6 +322,8 @@ def make_hybrid(
             supervisor=sup,
             simplex=watch.simplex,
             interventions=state.interventions + chan.astype(jnp.int32),
+            v_engage_fps=v_engage.astype(state.v_engage_fps.dtype),
+            engaged=jnp.asarray(True),
         )
         info = {
             "zeta": jnp.mean(z.zeta),

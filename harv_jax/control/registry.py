@@ -89,34 +89,37 @@ def _build_smc_brake_v0(opts: ControllerOptions) -> Controller:
     return make_smc_brake(SMCConfig(switching=opts.switching), schedule=schedule)
 
 
-def _policy_act(policy: str | None) -> Callable:
-    """The deterministic action of the policy at ``policy``; UsageError if its sizes do not fit."""
+def _policy_act(policy: str | None) -> tuple[Callable, bool]:
+    """The deterministic action of the policy at ``policy`` and whether it observes the engagement airspeed
+    (12 observations); UsageError if its sizes do not fit."""
     from harv_jax.policy import resolve_policy
-    from harv_jax.task.spaces import ACTION_SIZE, OBSERVATION_SIZE
+    from harv_jax.task.spaces import ACTION_SIZE, ENGAGE_OBSERVATION_SIZE, OBSERVATION_SIZE
 
     pol = resolve_policy(policy)
     sizes = (pol.networks.observation_size, pol.networks.action_size)
-    if sizes != (OBSERVATION_SIZE, ACTION_SIZE):
+    if sizes[0] not in (OBSERVATION_SIZE, ENGAGE_OBSERVATION_SIZE) or sizes[1] != ACTION_SIZE:
         raise UsageError(
             f"--policy {policy!r} maps {sizes[0]} observations to {sizes[1]} actions; this aircraft's "
-            f"controller needs {OBSERVATION_SIZE} -> {ACTION_SIZE}"
+            f"controller needs {OBSERVATION_SIZE} (or {ENGAGE_OBSERVATION_SIZE} with the engagement "
+            f"airspeed) -> {ACTION_SIZE}"
         )
-    return pol.deterministic
+    return pol.deterministic, sizes[0] == ENGAGE_OBSERVATION_SIZE
 
 
 def _build_rl(opts: ControllerOptions) -> Controller:
     from harv_jax.control.rl import make_rl_controller
 
-    return make_rl_controller(_policy_act(opts.policy))
+    act, engage = _policy_act(opts.policy)
+    return make_rl_controller(act, engage_airspeed=engage)
 
 
 def _build_hybrid(opts: ControllerOptions) -> Controller:
     from harv_jax.control.hybrid import ZETA_SCHEDULES, HybridConfig, make_hybrid
 
-    act = _policy_act(opts.policy)
+    act, engage = _policy_act(opts.policy)
     if opts.zeta not in ZETA_SCHEDULES:
         raise UsageError(f"--zeta {opts.zeta!r} is unknown; allowed: {', '.join(ZETA_SCHEDULES)}")
-    return make_hybrid(act, HybridConfig(schedule=opts.zeta))
+    return make_hybrid(act, HybridConfig(schedule=opts.zeta, engage_airspeed=engage))
 
 
 #: The controllers, in help order.

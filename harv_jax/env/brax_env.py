@@ -32,7 +32,7 @@ from harv_jax.env.config import EnvConfig, EnvParams
 from harv_jax.env.recovery import make_env
 from harv_jax.env.reward import RewardTerms
 from harv_jax.env.termination import TerminationFlags
-from harv_jax.task.spaces import ACTION_SIZE, OBSERVATION_SIZE
+from harv_jax.task.spaces import ACTION_SIZE
 
 
 class HarvBraxEnv(BraxEnvBase):
@@ -58,7 +58,7 @@ class HarvBraxEnv(BraxEnvBase):
 
     @property
     def observation_size(self) -> int:
-        return OBSERVATION_SIZE
+        return self._core.observation_size
 
     @property
     def action_size(self) -> int:

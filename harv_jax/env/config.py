@@ -68,6 +68,8 @@ class EnvConfig:
         h0_ft: default initial altitude, ft (copied into ``EnvParams.h0_ft``).
         h_floor_ft: default altitude floor, ft (copied into ``EnvParams.envelope.h_floor_ft``).
         discount: default PBRS discount Gamma (= the PPO discount; paper 0.99).
+        observe_engage_airspeed: the observation gains a 12th component, the airspeed of the episode's
+            first observation, ft/s (``task.spaces.ENGAGE_OBS_NAMES``; default off: the paper's 11).
     """
 
     dt_s: float = DT_S
@@ -79,6 +81,7 @@ class EnvConfig:
     h_floor_ft: float = H_FLOOR_FT
     discount: float = 0.99
     aircraft: str = DEFAULT_AIRCRAFT
+    observe_engage_airspeed: bool = False
 
     def __post_init__(self) -> None:
         if not self.dt_s > 0:

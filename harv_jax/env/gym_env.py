@@ -29,8 +29,8 @@ from harv_jax.env.config import EnvConfig, EnvParams
 from harv_jax.env.recovery import EnvState, make_env
 from harv_jax.env.reward import RewardTerms
 from harv_jax.env.termination import TerminationFlags
-from harv_jax.task.spaces import ACTION_SIZE, OBS_HIGH, OBS_LOW, OBSERVATION_SIZE
-from harv_jax.task.spec import ALPHA_TARGET_RAD, BETA_TARGET_RAD, MU_TARGET_RAD
+from harv_jax.task.spaces import ACTION_SIZE, OBS_HIGH, OBS_LOW
+from harv_jax.task.spec import ALPHA_TARGET_RAD, BETA_TARGET_RAD, MU_TARGET_RAD, V_MAX_FPS, V_MIN_FPS
 
 _SEED_HIGH = 2**31 - 1
 #: Default target of ``reset(options={"wind_state": ...})``: alpha_d = 20 deg (the paper's Monte Carlo
@@ -61,7 +61,11 @@ class HarvRecoveryEnv(gym.Env):
         core = make_env(config)
         self._config = core.config
         self._params = params if params is not None else core.default_params()
-        self.observation_space = gym.spaces.Box(low=OBS_LOW, high=OBS_HIGH, dtype=np.float32)
+        low, high = OBS_LOW, OBS_HIGH
+        if core.observation_size > OBS_LOW.size:  # the engagement airspeed (``observe_engage_airspeed``)
+            low, high = np.append(low, np.float32(V_MIN_FPS)), np.append(high, np.float32(V_MAX_FPS))
+        self._n_obs = core.observation_size
+        self.observation_space = gym.spaces.Box(low=low, high=high, dtype=np.float32)
         self.action_space = gym.spaces.Box(low=-1.0, high=1.0, shape=(ACTION_SIZE,), dtype=np.float32)
         self._state = None
         self._key = None
@@ -149,9 +153,10 @@ class HarvRecoveryEnv(gym.Env):
         a = np.asarray(action, dtype=np.float32).reshape(ACTION_SIZE)
         self._key, self._state, packed = self._step_fn(self._key, self._state, a)
         packed = np.asarray(packed, dtype=np.float64)
-        obs = packed[:OBSERVATION_SIZE].astype(np.float32)
-        reward, terminated, truncated, episode_step = packed[OBSERVATION_SIZE : OBSERVATION_SIZE + 4]
-        values = packed[OBSERVATION_SIZE + 4 :]
+        n = self._n_obs
+        obs = packed[:n].astype(np.float32)
+        reward, terminated, truncated, episode_step = packed[n : n + 4]
+        values = packed[n + 4 :]
         info: dict[str, Any] = dict(zip(self._info_names, values, strict=True))
         for k in self._info_names:
             if k.startswith("term/"):

@@ -69,7 +69,9 @@ from harv_jax.task.spaces import (
     action_to_command,
     clean_observation,
     command_to_action,
+    engage_observation_size,
     finish_observation,
+    with_engage_airspeed,
 )
 
 _MU, _CHI = WIND_INDEX["mu"], WIND_INDEX["chi"]
@@ -104,6 +106,8 @@ class EnvState:
         step: int32 steps taken in this episode.
         potential: PBRS potential sigma of the current state.
         episode: this episode's randomized parameters.
+        v_engage_fps: airspeed of the episode's first observation, ft/s (observed with
+            ``EnvConfig.observe_engage_airspeed``).
     """
 
     aircraft: BodyState
@@ -115,6 +119,7 @@ class EnvState:
     step: jnp.ndarray
     potential: jnp.ndarray
     episode: EpisodeParams
+    v_engage_fps: jnp.ndarray
 
 
 class Env(NamedTuple):
@@ -129,7 +134,7 @@ class Env(NamedTuple):
         reset_to: (key, x_wind [10], target [3], params) -> (obs, EnvState): start at a given state.
         batch_step: (keys [N], states, actions [N, 3], params) -> vmap(step) outputs, with the resets
             computed only on steps where some env is done (faster for long episodes).
-        observation_size: 11.
+        observation_size: 11 (12 with ``EnvConfig.observe_engage_airspeed``).
         action_size: 3.
     """
 
@@ -213,6 +218,9 @@ def make_env(config: EnvConfig | None = None) -> Env:
             obs = obs.at[:NUM_MEASURED].add(randomize.sensor_noise(noise8, ep))
         return finish_observation(obs)
 
+    def _with_engage(obs: jnp.ndarray, v_engage_fps: jnp.ndarray) -> jnp.ndarray:
+        return with_engage_airspeed(obs, v_engage_fps) if config.observe_engage_airspeed else obs
+
     def _uniform(key: jax.Array, n: int, params: EnvParams) -> jnp.ndarray:
         dtype = params.reset.low.dtype
         return randomize.uniform16(key, n, dtype) if n else jnp.zeros((0,), dtype)
@@ -248,6 +256,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
             ep = randomize.nominal_episode(params.aircraft, params.randomization)
             gust = jnp.zeros((3,), dtype)
             noise8 = None
+        obs = _observe(noise8, x0, target, ep)
         state = EnvState(
             aircraft=from_wind(x0),
             wind=x0,
@@ -258,8 +267,9 @@ def make_env(config: EnvConfig | None = None) -> Env:
             step=jnp.zeros((), dtype=jnp.int32),
             potential=reward.state_potential(x0, target, params.reward),
             episode=ep,
+            v_engage_fps=obs[0],
         )
-        return _observe(noise8, x0, target, ep), state
+        return _with_engage(obs, state.v_engage_fps), state
 
     def reset(key: jax.Array, params: EnvParams) -> tuple[jnp.ndarray, EnvState]:
         """Start an episode: (obs [11], EnvState)."""
@@ -299,7 +309,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
         terms, pot_next = reward.reward_terms(
             x, state.target_rad, a, state.potential, terminated, params.reward, a_prev
         )
-        obs = _observe(noise8, x, state.target_rad, ep)
+        obs = _with_engage(_observe(noise8, x, state.target_rad, ep), state.v_engage_fps)
         new_state = state.replace(
             aircraft=body,
             wind=x,
@@ -372,4 +382,5 @@ def make_env(config: EnvConfig | None = None) -> Env:
         default_params=lambda: default_params(config),
         reset_to=reset_to,
         batch_step=batch_step,
+        observation_size=engage_observation_size(config.observe_engage_airspeed),
     )

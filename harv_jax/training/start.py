@@ -23,7 +23,7 @@ from harv_jax.ppo.config import PPOConfig
 from harv_jax.ppo.networks import PPOParams
 from harv_jax.ppo.runner import check_init_policy
 from harv_jax.ppo.train import Trainer, make_train
-from harv_jax.task.spaces import ACTION_SIZE, OBSERVATION_SIZE
+from harv_jax.task.spaces import ACTION_SIZE, engage_observation_size
 from harv_jax.training.demos import RunDemos, load_run_demos
 from harv_jax.training.environment import make_harv_env
 from harv_jax.training.outputs import save_spin_bank
@@ -64,11 +64,11 @@ def load_init_policy(
     return init
 
 
-def check_init_sizes(spec: str, pol: Policy, cfg: PPOConfig) -> None:
+def check_init_sizes(spec: str, pol: Policy, cfg: PPOConfig, observation_size: int) -> None:
     """UsageError naming ``--init-policy`` unless the policy's observation, action and hidden sizes are the
     run's (checked before the env is built; :func:`load_init_policy` then checks every array)."""
     got = (pol.networks.observation_size, pol.networks.action_size, tuple(pol.networks.actor.hidden_sizes))
-    want = (OBSERVATION_SIZE, ACTION_SIZE, cfg.hidden_sizes)
+    want = (observation_size, ACTION_SIZE, cfg.hidden_sizes)
     if got != want:
         raise UsageError(
             f"--init-policy {spec!r} has {got[0]} observations, {got[1]} actions and hidden layers "
@@ -87,8 +87,9 @@ def build_training(
             demonstrations (:func:`~harv_jax.training.demos.load_run_demos`).
     """
     pol = None if init_policy is None else resolve_policy(init_policy)  # a bad file fails before the env
+    obs_size = engage_observation_size(env_table.get("observe_engage_airspeed") is True)
     if pol is not None:
-        check_init_sizes(init_policy, pol, cfg)
+        check_init_sizes(init_policy, pol, cfg, obs_size)
     if (cfg.bc_coef > 0 or cfg.bc_coef_end > 0) and env_table.get(TEACHER_KEY) is None and cfg.demos is None:
         raise UsageError(
             f"bc_coef {cfg.bc_coef:g} / bc_coef_end {cfg.bc_coef_end:g} clone a teacher, and this run has "
@@ -97,7 +98,7 @@ def build_training(
         )
     demos = None
     if cfg.demos is not None:  # before the env is built: bad demos fail fast
-        demos = load_run_demos(cfg.demos, OBSERVATION_SIZE, ACTION_SIZE, demos_sha256)
+        demos = load_run_demos(cfg.demos, obs_size, ACTION_SIZE, demos_sha256)
     env, env_params = make_harv_env(env_table)
     pairs = None if demos is None else (demos.observations, demos.actions)
     trainer = make_train(env, cfg, env_params, episode_metrics_fn=harv_episode_metrics, demos=pairs)
