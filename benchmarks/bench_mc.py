@@ -54,7 +54,7 @@ RESULTS_DIR = Path(__file__).resolve().parent / "results"
 DT_S = 0.01
 TARGET_ALPHA_RAD = 0.349
 RECORD_EVERY = 10
-#: The issue's targets (run time after compilation).
+#: Targets (run time after compilation).
 TARGETS_S = {
     "mc_1000_hybrid_cpu_2core": 15.0,
     "mc_1000_hybrid_gpu_h100": 1.0,

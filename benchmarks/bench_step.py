@@ -41,7 +41,7 @@ from benchmarks.common import (  # noqa: E402
 from harv_jax.policies import DEFAULT_POLICY_SPEC  # noqa: E402
 
 DT_S = 0.01
-#: The issue's targets: SMC step <= 4 x plant step, hybrid step <= 1.3 x SMC step.
+#: Targets: SMC step <= 4 x plant step, hybrid step <= 1.3 x SMC step.
 TARGETS = {
     "smc_over_plant": 4.0,
     "hybrid_over_smc": 1.3,

@@ -33,6 +33,7 @@ HISTORY_PATTERNS = {
     "session N": re.compile(r"\bsessions?\s+#?\d+", re.IGNORECASE),
     "issue N": re.compile(r"\b(?:pre-)?issues?[\s\-]+#?\d+", re.IGNORECASE),
     "until now": re.compile(r"\buntil now\b", re.IGNORECASE),
+    "the issue's": re.compile(r"\b(?:the|this) issue(?:'s|\b(?! with))", re.IGNORECASE),
 }
 
 #: References to files that do not ship with the repository. Case-sensitive: "findings" and "model.md"-like
@@ -52,6 +53,7 @@ BAD_SAMPLES = {
     "session N": ["measured in session 14", "Session 9's code", "sessions 11 to 14"],
     "issue N": ["issue 18's targets", "Issue #17, item 3", "the pre-issue-18 SMC", "(issue 3)"],
     "until now": ["the default until now", "Until now the"],
+    "the issue's": ["the issue's criterion", "The issue's targets", "as this issue asks"],
     "../shared": ["see ../shared/MODEL.md", "``../shared/FINDINGS.md``"],
     "MODEL.md": ["MODEL.md trim table", "(MODEL.md verified forms)"],
     "FINDINGS": ["FINDINGS: 0.1 settles", "FINDINGS.md probe", "FINDINGS' probe"],
@@ -70,6 +72,8 @@ GOOD_SAMPLES = [
     "the shared 2-core CPU",
     "reissue 3 commands",
     "until nowhere",
+    "the issue with the table",
+    "a known issue",
     "session_14_runs",
 ]
 

@@ -34,7 +34,7 @@ def harv_episode_metrics(info: dict[str, Any]) -> dict[str, jax.Array]:
 
     ``final_omega_radps``: ||(p, q, r)|| of the state the episode ended in; ``recovered``: 1 if the episode
     was not terminated and its final state meets |e_alpha| < 2 deg, |e_beta| < 1 deg, |e_mu| < 2 deg and
-    ||omega|| < 0.17 rad/s (the issue's criterion at the last step only, without the 10 s hold);
+    ||omega|| < 0.17 rad/s (the recovery criterion at the last step only, without the 10 s hold);
     ``alpha_ok``: |e_alpha| < 2 deg at the end, not terminated; ``terminated``: left the envelope;
     ``final_omega_alive_radps`` and ``final_abs_e_alpha_rad``: ||omega|| and |e_alpha| at the end if not
     terminated, else 0 (divide their mean by ``1 - terminated`` for the mean over surviving episodes).

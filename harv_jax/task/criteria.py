@@ -62,7 +62,7 @@ class RecoveryCriterion:
 
 
 def default_criterion() -> RecoveryCriterion:
-    """The issue's criterion: 2 deg, 1 deg, 2 deg, 0.17 rad/s, held over the last 10 s (``task.spec``)."""
+    """The recovery criterion: 2 deg, 1 deg, 2 deg, 0.17 rad/s, held over the last 10 s (``task.spec``)."""
     dt = jnp.result_type(float)
     return RecoveryCriterion(
         alpha_tol_rad=jnp.asarray(RECOVERY_ALPHA_TOL_RAD, dt),
@@ -146,7 +146,7 @@ def recovered_mask(
 def alpha_recovered_mask(
     x_wind: jnp.ndarray, reference_rad: jnp.ndarray, criterion: RecoveryCriterion
 ) -> jnp.ndarray:
-    """Per-sample bool [...]: |e_alpha| < tol and ||omega|| < tol (the issue's recovery-time condition)."""
+    """Per-sample bool [...]: |e_alpha| < tol and ||omega|| < tol (the recovery-time condition)."""
     e = jnp.abs(tracking_errors(x_wind, reference_rad))
     return (e[..., 0] < criterion.alpha_tol_rad) & (omega_norm_radps(x_wind) < criterion.omega_tol_radps)
 
