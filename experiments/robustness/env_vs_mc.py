@@ -1,0 +1,396 @@
+"""The training env's episode end against the Monte Carlo's recovery criterion, run by run.
+
+    python experiments/robustness/env_vs_mc.py --runs 1000 --seed 2027
+
+Draws the initial states of ``harv-jax mc --runs N --seed S`` (nominal aircraft, no disturbance:
+``evaluation.mc_inputs.sample_mc_inputs``) and flies the SMC from each of them twice, for the Monte
+Carlo's 60 s:
+
+(a) through the env: ``make_env(EnvConfig(domain_randomization=False, episode_steps=6000))``,
+    ``reset_to`` at the run's x0 and the Monte Carlo's target [alpha_d, 0, 0]; each step the controller
+    sees the env state's ``wind`` and its command becomes the action through ``task.spaces.command_to_action``
+    (clipped to [-1, 1]). The controller starts as the Monte Carlo starts it (``controller.init`` of the
+    aircraft, ``u_prev_rad`` at the initial deflections, 0) with the Monte Carlo's controller keys. The
+    episode is not reset at a termination (``step_no_reset``): the first termination's step and flags are
+    recorded and the aircraft flies on, so the whole 60 s can be compared too.
+(b) through the Monte Carlo's ``evaluation.closed_loop.closed_loop``, scored by its ``score``.
+
+Per run: whether and at which step the env terminated and by which flags, the Monte Carlo's outcome,
+``left_envelope`` and first step outside its envelope (``task.criteria.within_envelope``), and how far
+the two trajectories are apart up to the env's termination (and over the whole run): the largest
+difference of a wind-state component divided by that component's scale (``SCALE``; mu and chi wrapped).
+Writes ``results/env_vs_mc/seed<S>_n<N>.json`` and prints the cross-tabulation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import platform
+import shlex
+import sys
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from harv_jax.aircraft.registry import resolve_aircraft
+from harv_jax.control.registry import build_controller
+from harv_jax.dynamics.state import WIND_INDEX, from_wind, to_wind
+from harv_jax.env.config import EnvConfig
+from harv_jax.env.recovery import make_env
+from harv_jax.env.termination import TerminationFlags, termination_flags
+from harv_jax.evaluation.closed_loop import closed_loop, score
+from harv_jax.evaluation.mc_inputs import sample_mc_inputs
+from harv_jax.task.criteria import OUTCOME_NAMES, within_envelope
+from harv_jax.task.spaces import command_to_action
+from harv_jax.task.spec import (
+    ALPHA_MAX_RAD,
+    ALPHA_MIN_RAD,
+    ALPHA_TARGET_RAD,
+    DT_S,
+    H0_FT,
+    RATE_MAX_RADPS,
+    V_MAX_FPS,
+)
+
+RESULTS = Path(__file__).parent / "results" / "env_vs_mc"
+FLAGS = TerminationFlags._fields
+#: Scale of each wind-state component [V, alpha, beta, p, q, r, mu, gamma, chi, h] for the trajectory
+#: difference: the envelope's half-width for V and the rates, one radian for the angles, the initial
+#: altitude for h.
+SCALE = np.array(
+    [V_MAX_FPS / 2, 1.0, 1.0, RATE_MAX_RADPS, RATE_MAX_RADPS, RATE_MAX_RADPS, 1.0, 1.0, 1.0, H0_FT]
+)
+_WRAPPED = (WIND_INDEX["mu"], WIND_INDEX["chi"])
+
+
+def cpu_model() -> str:
+    """The CPU's 'model name' from /proc/cpuinfo (the platform's processor name elsewhere)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def draw_runs(seed: int, n_runs: int, target_alpha_rad: float):
+    """The Monte Carlo's runs of ``harv-jax mc --runs n_runs --seed seed``: (x0 [N, 10], controller keys [N],
+    nominal aircraft, reference [3])."""
+    _, nominal = resolve_aircraft(None)
+    inputs = sample_mc_inputs(jax.random.key(seed), n_runs, nominal, h0_ft=H0_FT)
+    reference = jnp.array([target_alpha_rad, 0.0, 0.0], dtype=inputs.x0_wind.dtype)
+    return inputs.x0_wind, inputs.keys, nominal, reference
+
+
+def wind_difference(x_a: jnp.ndarray, x_b: jnp.ndarray) -> jnp.ndarray:
+    """|x_a - x_b| / SCALE per sample and component [..., 10] (mu and chi wrapped to (-pi, pi])."""
+    d = x_a - x_b
+    for i in _WRAPPED:
+        d = d.at[..., i].set(jnp.remainder(d[..., i] + math.pi, 2 * math.pi) - math.pi)
+    return jnp.abs(d) / jnp.asarray(SCALE, d.dtype)
+
+
+def make_compare(controller, env, n_steps: int):
+    """(params, env_params, x0, key, reference) -> per-run record of both flights (jit and vmap it)."""
+
+    def fly_env(params, env_params, x0, key, reference):
+        _, state0 = env.reset_to(jax.random.key(0), x0, reference, env_params)
+        cstate0 = controller.init(params)
+        cstate0 = cstate0.replace(u_prev_rad=state0.delta_rad.astype(cstate0.u_prev_rad.dtype))
+        ac = env_params.aircraft
+        no_flags = TerminationFlags(*(jnp.asarray(False) for _ in FLAGS))
+
+        def step(carry, key_k):
+            state, cstate, k_term, flags_term = carry
+            x = state.wind
+            u, cstate, _ = controller.apply(cstate, x, reference, key_k)
+            action = jnp.clip(command_to_action(u, ac.u_min_rad, ac.u_max_rad), -1.0, 1.0)
+            _, state, _, terminated, _, info = env.step_no_reset(key_k, state, action, env_params)
+            first = terminated & (k_term < 0)
+            k_term = jnp.where(first, state.step, k_term)
+            flags = TerminationFlags(**info["termination"])
+            flags_term = jax.tree.map(lambda new, old: jnp.where(first, new, old), flags, flags_term)
+            return (state, cstate, k_term, flags_term), (x, jnp.all(jnp.isfinite(u)))
+
+        keys = jax.random.split(key, n_steps)
+        carry0 = (state0, cstate0, jnp.asarray(-1, jnp.int32), no_flags)
+        (state, _, k_term, flags_term), (xs, u_finite) = jax.lax.scan(step, carry0, keys)
+        x_all = jnp.concatenate([xs, state.wind[None]], axis=0)
+        return x_all, k_term, flags_term, jnp.all(u_finite)
+
+    def compare(params, env_params, x0, key, reference):
+        x_env, k_term, flags_term, env_u_finite = fly_env(params, env_params, x0, key, reference)
+        res = closed_loop(controller, params, x0, reference, key, n_steps, DT_S)
+        m, x_mc = score(res, reference, params, DT_S)
+        outside = ~within_envelope(x_mc, env_params.envelope)
+        n = x_mc.shape[0]
+        k_out = jnp.min(jnp.where(outside, jnp.arange(n), n))
+        k_out = jnp.where(k_out < n, k_out, -1)
+        diff = jnp.max(wind_difference(x_env, x_mc), axis=-1)  # [T + 1]
+        upto = jnp.where(k_term >= 0, k_term, n - 1)
+        diff_upto = jnp.max(jnp.where(jnp.arange(n) <= upto, diff, 0.0))
+        steps = jnp.arange(n)
+
+        def first_above(th):
+            k = jnp.min(jnp.where(diff > th, steps, n))
+            return jnp.where(k < n, k, -1)
+
+        alpha_mc = x_mc[:, WIND_INDEX["alpha"]]
+        # the env's envelope flags on the Monte Carlo's states: does the MC trajectory trip the same rule?
+        env_rule_on_mc = jax.vmap(lambda x: _env_flags_any(x, env_params))(x_mc)
+        k_env_rule_mc = jnp.min(jnp.where(env_rule_on_mc, jnp.arange(n), n))
+        return {
+            "env_terminated": k_term >= 0,
+            "env_term_step": k_term,
+            "env_term_flags": flags_term._asdict(),
+            "env_commands_finite": env_u_finite,
+            "mc_outcome": m.outcome,
+            "mc_recovered": m.recovered,
+            "mc_left_envelope": m.left_envelope,
+            "mc_t_left_envelope_s": m.t_left_envelope_s,
+            "mc_first_outside_step": k_out,
+            "mc_first_env_rule_step": jnp.where(k_env_rule_mc < n, k_env_rule_mc, -1),
+            "mc_nonfinite": m.nonfinite,
+            "rel_diff_upto_term": diff_upto,
+            "rel_diff_full": jnp.max(diff),
+            "rel_diff_x0": diff[0],
+            "first_step_rel_diff_above_1e-6": first_above(1e-6),
+            "first_step_rel_diff_above_1e-4": first_above(1e-4),
+            "env_term_alpha_rad": jnp.where(
+                k_term >= 0, x_env[jnp.maximum(k_term, 0), WIND_INDEX["alpha"]], jnp.nan
+            ),
+            "mc_alpha_min_rad": jnp.min(alpha_mc),
+            "mc_alpha_max_rad": jnp.max(alpha_mc),
+        }
+
+    return compare
+
+
+def _env_flags_any(x_wind: jnp.ndarray, env_params) -> jnp.ndarray:
+    """The env's termination rule on a wind state [10] (finite: its components are)."""
+    return termination_flags(x_wind, jnp.all(jnp.isfinite(x_wind)), env_params.envelope).any
+
+
+def run(seed: int, n_runs: int, target_alpha_rad: float, duration_s: float, chunk: int) -> dict:
+    n_steps = int(round(duration_s / DT_S))
+    x0, keys, nominal, reference = draw_runs(seed, n_runs, target_alpha_rad)
+    env = make_env(EnvConfig(domain_randomization=False, episode_steps=n_steps))
+    env_params = env.default_params()
+    same_aircraft = all(
+        bool(jnp.all(a == b))
+        for a, b in zip(jax.tree.leaves(env_params.aircraft), jax.tree.leaves(nominal), strict=True)
+    )
+    controller = build_controller("smc")
+    compare = make_compare(controller, env, n_steps)
+    fn = jax.jit(jax.vmap(compare, in_axes=(None, None, 0, 0, None)))
+    chunk = max(1, min(chunk, n_runs))
+    pad = (-n_runs) % chunk
+    x0_p = jnp.concatenate([x0, jnp.repeat(x0[:1], pad, axis=0)]) if pad else x0
+    keys_p = jnp.concatenate([keys, jnp.repeat(keys[:1], pad, axis=0)]) if pad else keys
+    t0 = time.perf_counter()
+    compiled = fn.lower(nominal, env_params, x0_p[:chunk], keys_p[:chunk], reference).compile()
+    t_compile = time.perf_counter() - t0
+    outs = []
+    t0 = time.perf_counter()
+    for i in range(0, n_runs + pad, chunk):
+        outs.append(
+            jax.device_get(
+                compiled(nominal, env_params, x0_p[i : i + chunk], keys_p[i : i + chunk], reference)
+            )
+        )
+    t_run = time.perf_counter() - t0
+    per_run = jax.tree.map(lambda *xs: np.concatenate(xs)[:n_runs], *outs)
+    return {
+        "n_steps": n_steps,
+        "reference_rad": np.asarray(reference).tolist(),
+        "same_aircraft": same_aircraft,
+        "x0_roundtrip_rel_diff_max": float(
+            jnp.max(wind_difference(jax.vmap(lambda x: to_wind(from_wind(x)))(x0), x0))
+        ),
+        "wall_s": {"compile": round(t_compile, 2), "run": round(t_run, 2)},
+        "per_run": per_run,
+    }
+
+
+def _share(mask: np.ndarray) -> float:
+    return float(np.mean(mask)) if mask.size else float("nan")
+
+
+def _earliest(first_steps) -> float | None:
+    """Earliest time over the runs, s, of a per-run first step (-1: never); None if no run has one."""
+    k = np.asarray(first_steps)
+    return float(k[k >= 0].min() * DT_S) if np.any(k >= 0) else None
+
+
+def summarize(per_run: dict) -> dict:
+    """Shares, cross-tabulation and agreement from the per-run arrays."""
+    term = np.asarray(per_run["env_terminated"])
+    left = np.asarray(per_run["mc_left_envelope"])
+    rec = np.asarray(per_run["mc_recovered"])
+    k_term = np.asarray(per_run["env_term_step"])
+    k_out = np.asarray(per_run["mc_first_outside_step"])
+    k_rule = np.asarray(per_run["mc_first_env_rule_step"])
+    outcome = np.asarray(per_run["mc_outcome"])
+    n = term.size
+    cross = []
+    for t in (True, False):
+        for lft in (True, False):
+            for r in (True, False):
+                sel = (term == t) & (left == lft) & (rec == r)
+                cross.append(
+                    {"env_terminated": t, "mc_left_envelope": lft, "mc_recovered": r, "runs": int(sel.sum())}
+                )
+    flags = {f: int(np.sum(np.asarray(per_run["env_term_flags"][f]) & term)) for f in FLAGS}
+    both = term & left
+    d_upto = np.asarray(per_run["rel_diff_upto_term"])
+    a_term = np.asarray(per_run["env_term_alpha_rad"])
+    d_full = np.asarray(per_run["rel_diff_full"])
+
+    def stats(d, sel=None):
+        d = d if sel is None else d[sel]
+        if not d.size:
+            return None
+        return {"max": float(np.max(d)), "p99": float(np.percentile(d, 99)), "median": float(np.median(d))}
+
+    return {
+        "runs": int(n),
+        "env_terminated_share": _share(term),
+        "mc_left_envelope_share": _share(left),
+        "mc_recovered_share": _share(rec),
+        "mc_outcomes": {name: int(np.sum(outcome == i)) for i, name in enumerate(OUTCOME_NAMES)},
+        "env_like_recovered_share": _share(rec & ~left),
+        "cross_tab": cross,
+        "env_termination_flags": flags,
+        "term_step_equals_mc_first_outside": int(np.sum(both & (k_term == k_out))),
+        "term_step_differs": int(np.sum(both & (k_term != k_out))),
+        "env_terminated_only": int(np.sum(term & ~left)),
+        "mc_left_only": int(np.sum(~term & left)),
+        "term_step_equals_env_rule_on_mc": int(np.sum(term & (k_term == k_rule))),
+        "env_term_time_s": stats(k_term * DT_S, term),
+        "mc_left_time_s": stats(k_out * DT_S, left),
+        "rel_diff_upto_term": stats(d_upto),
+        "rel_diff_upto_term_terminated_runs": stats(d_upto, term),
+        "env_terminations_alpha_below_min": int(np.sum(term & (a_term < ALPHA_MIN_RAD))),
+        "env_terminations_alpha_above_max": int(np.sum(term & (a_term > ALPHA_MAX_RAD))),
+        "env_term_time_s_alpha_below_min": stats(k_term * DT_S, term & (a_term < ALPHA_MIN_RAD)),
+        "env_term_time_s_alpha_above_max": stats(k_term * DT_S, term & (a_term > ALPHA_MAX_RAD)),
+        "mc_alpha_min_rad_terminated_runs": stats(np.asarray(per_run["mc_alpha_min_rad"]), term),
+        "earliest_time_rel_diff_above_1e-6_s": _earliest(per_run["first_step_rel_diff_above_1e-6"]),
+        "earliest_time_rel_diff_above_1e-4_s": _earliest(per_run["first_step_rel_diff_above_1e-4"]),
+        "runs_rel_diff_above_1e-4_before_term": int(
+            np.sum(
+                (np.asarray(per_run["first_step_rel_diff_above_1e-4"]) >= 0)
+                & ((np.asarray(per_run["first_step_rel_diff_above_1e-4"]) <= k_term) | ~term)
+            )
+        ),
+        "rel_diff_full_run": stats(d_full),
+        "env_commands_finite_all": bool(np.all(per_run["env_commands_finite"])),
+        "mc_nonfinite_runs": int(np.sum(per_run["mc_nonfinite"])),
+    }
+
+
+def _finite(v):
+    """JSON-safe: NaN and infinities -> None, recursively."""
+    if isinstance(v, float):
+        return v if math.isfinite(v) else None
+    if isinstance(v, dict):
+        return {k: _finite(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_finite(x) for x in v]
+    return v
+
+
+def to_json(doc: dict) -> str:
+    """The document with one top-level key per line block; the per-run lists compact (one line each)."""
+    doc = _finite(doc)
+    per_run = doc.pop("per_run")
+    head = json.dumps(doc, indent=1)[:-2]
+    rows = ",\n".join(
+        f"  {json.dumps(k)}: {json.dumps(v, separators=(',', ':'))}" for k, v in per_run.items()
+    )
+    return f'{head},\n "per_run": {{\n{rows}\n }}\n}}\n'
+
+
+def print_table(s: dict, duration_s: float) -> None:
+    n = s["runs"]
+    print(
+        f"runs {n}: env terminated {100 * s['env_terminated_share']:.1f}%, MC left envelope "
+        f"{100 * s['mc_left_envelope_share']:.1f}%, MC recovered {100 * s['mc_recovered_share']:.1f}%, "
+        f"env-like (recovered and never left) {100 * s['env_like_recovered_share']:.1f}%"
+    )
+    print("| env terminated | MC left envelope | MC recovered | runs | share |")
+    print("|---|---|---|---:|---:|")
+    for row in s["cross_tab"]:
+        if row["runs"]:
+            cells = (
+                "yes" if row[k] else "no" for k in ("env_terminated", "mc_left_envelope", "mc_recovered")
+            )
+            print(f"| {' | '.join(cells)} | {row['runs']} | {100 * row['runs'] / n:.1f}% |")
+    print(f"termination flags: {s['env_termination_flags']}")
+    print(
+        f"env termination step == MC first step outside: {s['term_step_equals_mc_first_outside']}, differs: "
+        f"{s['term_step_differs']}, env only: {s['env_terminated_only']}, MC only: {s['mc_left_only']}"
+    )
+    print(
+        f"env terminations with alpha below its minimum: {s['env_terminations_alpha_below_min']} "
+        f"(time s {s['env_term_time_s_alpha_below_min']}), above its maximum: "
+        f"{s['env_terminations_alpha_above_max']} (time s {s['env_term_time_s_alpha_above_max']})"
+    )
+    print(f"trajectory difference / scale up to the env's termination (all runs): {s['rel_diff_upto_term']}")
+    print(f"  terminated runs: {s['rel_diff_upto_term_terminated_runs']}")
+    print(f"whole {duration_s:g} s run: {s['rel_diff_full_run']}")
+    print(
+        f"earliest time the difference exceeds 1e-6: {s['earliest_time_rel_diff_above_1e-6_s']} s, 1e-4: "
+        f"{s['earliest_time_rel_diff_above_1e-4_s']} s"
+    )
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--runs", type=int, default=1000)
+    ap.add_argument("--seed", type=int, default=2027)
+    ap.add_argument("--target-alpha", type=float, default=ALPHA_TARGET_RAD, help="alpha_d, rad")
+    ap.add_argument("--duration", type=float, default=60.0, help="s (the Monte Carlo's run length)")
+    ap.add_argument("--chunk", type=int, default=250, help="runs per compiled call")
+    ap.add_argument("--out", type=Path, default=None, help="JSON path (default results/env_vs_mc/...)")
+    args = ap.parse_args(argv)
+    res = run(args.seed, args.runs, args.target_alpha, args.duration, args.chunk)
+    per_run = res.pop("per_run")
+    summary = summarize(per_run)
+    doc = {
+        "command": "python " + " ".join(shlex.quote(a) for a in [sys.argv[0], *(argv or sys.argv[1:])]),
+        "seed": args.seed,
+        "runs": args.runs,
+        "target_alpha_rad": args.target_alpha,
+        "duration_s": args.duration,
+        "cpu": cpu_model(),
+        "jax": jax.__version__,
+        "backend": jax.default_backend(),
+        "dtype": str(jnp.result_type(float)),
+        "scale": dict(zip(WIND_INDEX, SCALE.tolist(), strict=True)),
+        **res,
+        "summary": summary,
+        "per_run": {
+            k: (
+                {f: np.asarray(v[f]).tolist() for f in FLAGS}
+                if k == "env_term_flags"
+                else np.asarray(per_run[k]).tolist()
+            )
+            for k, v in per_run.items()
+        },
+    }
+    out = args.out or RESULTS / f"seed{args.seed}_n{args.runs}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(to_json(doc))
+    print_table(summary, args.duration)
+    print(f"compile {res['wall_s']['compile']} s, run {res['wall_s']['run']} s; wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
