@@ -18,6 +18,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from harv_jax.aircraft.registry import resolve_aircraft
 from harv_jax.control.registry import build_controller
@@ -100,6 +101,7 @@ def _first(flags: np.ndarray) -> np.ndarray:
     return np.where(flags.any(axis=1), flags.argmax(axis=1), -1)
 
 
+@pytest.mark.slow  # 35-55 s on the 2-core CPU: the SMC's loop compiled twice (env and closed_loop)
 def test_env_is_the_closed_loop_and_ends_where_the_mc_leaves_the_envelope():
     x_env, term, x_mc, outside = (np.asarray(a) for a in _flights())
     # env step k (1-based) produces the state at t = k dt: termination step k <-> MC sample k
