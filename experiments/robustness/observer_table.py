@@ -2,8 +2,8 @@
 
     python experiments/robustness/observer_table.py
 
-Reads ``results/mc_observer_{clean,nogust,noise3}/summary.json`` (``harv-jax mc`` with the commands in the
-README) and prints, per controller and condition, recovered share, mean recovery time (not recovered at the
+Reads ``results/mc_observer_{clean,nogust,noise3}/summary.json`` and the same conditions of the 0.15 Hz
+observer, ``results/mc_observer015_*`` (``harv-jax mc`` with the commands in the README) and prints, per controller and condition, recovered share, mean recovery time (not recovered at the
 run length), control TV and chatter index, and TV and chatter against the same controller's clean run.
 """
 
@@ -13,18 +13,24 @@ import json
 from pathlib import Path
 
 RESULTS = Path(__file__).parent / "results"
-CONDITIONS = (
-    ("clean", "mc_observer_clean"),
-    ("noise, delay, model, lag", "mc_observer_nogust"),
-    ("noise 3x", "mc_observer_noise3"),
-)
+CONDITIONS = (("clean", "clean"), ("noise, delay, model, lag", "nogust"), ("noise 3x", "noise3"))
+#: Result folders: each holds the three conditions as ``<prefix>_<condition>``.
+PREFIXES = ("mc_observer", "mc_observer015")
 
 
 def main() -> None:
-    runs = {label: json.loads((RESULTS / d / "summary.json").read_text()) for label, d in CONDITIONS}
-    clean = runs["clean"]["controllers"]
     print("| controller | condition | recovered | mean (s) | TV (rad) | TV / clean | chatter / clean |")
     print("|---|---|---:|---:|---:|---:|---:|")
+    for prefix in PREFIXES:
+        rows(prefix)
+
+
+def rows(prefix: str) -> None:
+    """Print the table rows of one set of result folders."""
+    runs = {
+        label: json.loads((RESULTS / f"{prefix}_{d}" / "summary.json").read_text()) for label, d in CONDITIONS
+    }
+    clean = runs["clean"]["controllers"]
     for name, c0 in clean.items():
         for label, _ in CONDITIONS:
             c = runs[label]["controllers"][name]
