@@ -3,8 +3,9 @@
     python experiments/robustness/observer_table.py
 
 Reads ``results/mc_observer_{clean,nogust,noise3}/summary.json`` and the same conditions of the 0.15 Hz
-observer, ``results/mc_observer015_*`` (``harv-jax mc`` with the commands in the README) and prints, per controller and condition, recovered share, mean recovery time (not recovered at the
-run length), control TV and chatter index, and TV and chatter against the same controller's clean run.
+observer, ``results/mc_observer015_*`` (``harv-jax mc`` with the commands in the README) and prints, per
+controller and condition, recovered share, mean recovery time (not recovered at the run length), control TV
+and chatter index, and TV and chatter against the same controller's clean run.
 """
 
 from __future__ import annotations
