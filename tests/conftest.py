@@ -2,10 +2,39 @@
 
 from __future__ import annotations
 
+import os
+import shutil
+import tempfile
+
 import jax
 import pytest
 
 jax.config.update("jax_numpy_rank_promotion", "raise")
+
+#: Set by the first pytest process of a run; its xdist workers (and subprocesses) inherit it.
+_CACHE_ENV = "HARV_JAX_TEST_XLA_CACHE"
+
+
+def pytest_configure(config):
+    """One persistent XLA compilation cache per test run, in a fresh temporary folder shared by the xdist
+    workers: a program compiled again with the same HLO (the same command flown twice, a determinism check,
+    a rebuilt controller) is read back instead of compiled. It holds nothing from earlier runs and is removed
+    at the end. A cache the user configured (``JAX_COMPILATION_CACHE_DIR``) is left as it is."""
+    if os.environ.get("JAX_COMPILATION_CACHE_DIR") and not os.environ.get(_CACHE_ENV):
+        return
+    if not os.environ.get(_CACHE_ENV):
+        os.environ[_CACHE_ENV] = tempfile.mkdtemp(prefix="harv_jax_test_xla_cache_")
+        config._harv_jax_xla_cache = os.environ[_CACHE_ENV]  # this process removes it
+    os.environ["JAX_COMPILATION_CACHE_DIR"] = os.environ[_CACHE_ENV]
+    jax.config.update("jax_compilation_cache_dir", os.environ[_CACHE_ENV])
+
+
+def pytest_unconfigure(config):
+    path = getattr(config, "_harv_jax_xla_cache", None)
+    if path:
+        shutil.rmtree(path, ignore_errors=True)
+        os.environ.pop(_CACHE_ENV, None)
+        os.environ.pop("JAX_COMPILATION_CACHE_DIR", None)
 
 
 @pytest.fixture
@@ -13,3 +42,16 @@ def x64():
     """Run the test body with float64 enabled (restored afterwards)."""
     with jax.enable_x64(True):
         yield
+
+
+@pytest.fixture
+def damper():
+    """``cheap_controller.make_damper`` registered as the controller ``damper`` (removed afterwards): for the
+    command-line tests whose point is the command's files and flags, not the SMC (it compiles in seconds)."""
+    from cheap_controller import make_damper
+
+    from harv_jax.control import registry
+
+    registry.register("damper", lambda opts: make_damper(), options=(), help="rate damper (tests)")
+    yield "damper"
+    registry.CONTROLLERS.pop("damper", None)

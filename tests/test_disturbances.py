@@ -23,18 +23,22 @@ X0 = jnp.array([600.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 25_000.0])
 REF = jnp.array([0.349, 0.0, 0.0])
 
 
-def _probe(u_rad: float = 0.0, step_at: int | None = None) -> Controller:
+def _probe(u_rad: float = 0.0, step_at: int = 0) -> Controller:
     """A controller that records what it sees (info["x_seen"]) and the mass of the aircraft it was built on;
-    commands ``u_rad`` on the elevator (from step ``step_at`` on, if given)."""
+    commands ``u_rad`` on the elevator from step ``step_at`` on. Both live in its state, so that a flight
+    given that state as ``ctrl_state`` compiles once for every command (``_fly``)."""
 
     def init(params):
-        return {"mass": params.mass_slug, "k": jnp.zeros((), jnp.int32)}
+        return {
+            "mass": params.mass_slug,
+            "k": jnp.zeros((), jnp.int32),
+            "u": jnp.asarray(u_rad, jnp.float32),
+            "at": jnp.asarray(step_at, jnp.int32),
+        }
 
     def apply(state, x, ref, key):
-        on = jnp.asarray(True) if step_at is None else state["k"] >= step_at
-        u = jnp.array([1.0, 0.0, 0.0], x.dtype) * jnp.where(on, u_rad, 0.0)
-        new = {"mass": state["mass"], "k": state["k"] + 1}
-        return u, new, {"x_seen": x, "model_mass": state["mass"]}
+        u = jnp.array([1.0, 0.0, 0.0], x.dtype) * jnp.where(state["k"] >= state["at"], state["u"], 0.0)
+        return u, {**state, "k": state["k"] + 1}, {"x_seen": x, "model_mass": state["mass"]}
 
     return Controller(init, apply)
 
@@ -46,6 +50,27 @@ def _levels(noise=0.0, delay=0, gust=0.0, tau=5.0) -> DisturbanceParams:
         gust_std_fps=jnp.asarray(gust, jnp.float32),
         gust_tau_s=jnp.asarray(tau, jnp.float32),
     )
+
+
+#: One probe for every flight of ``_fly`` (the compiled flight is cached by its closure).
+PROBE = _probe()
+N_FLY = 200
+MAX_DELAY = 8
+
+
+@jax.jit
+def _fly_compiled(ctrl_state, levels: DisturbanceParams, disturbance_key):
+    return closed_loop(
+        PROBE, harv(), X0, REF, jax.random.key(0), N_FLY, ctrl_state=ctrl_state, disturbance=levels,
+        disturbance_key=disturbance_key, max_delay_steps=MAX_DELAY,
+    ).traj  # fmt: skip
+
+
+def _fly(disturbance_key, u_rad: float = 0.0, step_at: int = 0, **levels):
+    """The trajectory of ``N_FLY`` steps of the probe commanding ``u_rad`` from step ``step_at``, disturbed at
+    ``levels`` (``_levels``' arguments) drawn from ``disturbance_key``, a command FIFO of ``MAX_DELAY`` + 1.
+    The command, the levels and the key are traced: one compile serves every call."""
+    return _fly_compiled(_probe(u_rad, step_at).init(harv()), _levels(**levels), disturbance_key)
 
 
 def test_spec_none_is_the_undisturbed_monte_carlo_exactly():
@@ -72,34 +97,28 @@ def test_zero_levels_fly_as_none():
     np.testing.assert_allclose(a.history, b.history, rtol=1e-5, atol=1e-5)
 
 
-def _noise_seen(ctrl: Controller, key, n_steps=200, noise=1.0) -> np.ndarray:
-    res = closed_loop(
-        ctrl,
-        harv(),
-        X0,
-        REF,
-        jax.random.key(0),
-        n_steps,
-        disturbance=_levels(noise=noise),
-        disturbance_key=key,
-    )
-    return np.asarray(res.traj.info["x_seen"] - res.traj.x_wind)
+def _noise_seen(key, u_rad: float = 0.0, noise: float = 1.0) -> np.ndarray:
+    traj = _fly(key, u_rad, noise=noise)
+    return np.asarray(traj.info["x_seen"] - traj.x_wind)
 
 
 def test_every_controller_sees_the_same_noise_sequence():
     key = jax.random.key(11)
-    n_a = _noise_seen(_probe(0.0), key)
-    n_b = _noise_seen(_probe(-0.2), key)  # another command: another flight, the same noise
+    n_a = _noise_seen(key, 0.0)
+    n_b = _noise_seen(key, -0.2)  # another command: another flight, the same noise
     np.testing.assert_allclose(n_a[:, :8], n_b[:, :8], rtol=0, atol=2e-3)  # V (ft/s) carries float32 rounding
     np.testing.assert_allclose(n_a[:, 1:8], n_b[:, 1:8], rtol=0, atol=2e-6)
     assert np.all(n_a[:, 8:] == 0)  # chi and h are not measured with noise
-    assert not np.allclose(_noise_seen(_probe(0.0), jax.random.key(12)), n_a)
+    assert not np.allclose(_noise_seen(jax.random.key(12)), n_a)
 
 
 def test_noise_has_the_configured_mean_and_std():
-    noise = _noise_seen(_probe(0.0), jax.random.key(2), n_steps=20_000, noise=2.0)[:, :8]
+    """20,000 samples: 100 flights of 200 steps, each with its own disturbance key."""
+    keys = jax.random.split(jax.random.key(2), 100)
+    noise = np.concatenate([_noise_seen(k, noise=2.0)[:, :8] for k in keys])
     std = 2.0 * DEFAULT_NOISE_STD_MAX
     n = noise.shape[0]
+    assert n == 20_000
     assert np.all(np.abs(noise.mean(axis=0)) < 5 * std / np.sqrt(n))
     np.testing.assert_allclose(noise.std(axis=0), std, rtol=0.03)
 
@@ -107,21 +126,15 @@ def test_noise_has_the_configured_mean_and_std():
 @pytest.mark.parametrize("delay", [0, 1, 5])
 def test_a_step_command_reaches_the_plant_d_steps_later(delay):
     k0 = 10
-    res = closed_loop(
-        _probe(-0.05, step_at=k0), harv(), X0, REF, jax.random.key(0), 40,
-        disturbance=_levels(delay=delay), disturbance_key=jax.random.key(1), max_delay_steps=8,
-    )  # fmt: skip
-    de = np.asarray(res.traj.delta_rad[:, 0])
+    de = np.asarray(_fly(jax.random.key(1), -0.05, k0, delay=delay).delta_rad[:, 0])
     moved = np.flatnonzero(de != 0.0)
     assert moved[0] == k0 + delay  # delta_rad[k]: the deflection over the step after the command of step k
 
 
 def test_delay_is_clipped_to_the_fifo():
-    res = closed_loop(
-        _probe(-0.05, step_at=0), harv(), X0, REF, jax.random.key(0), 20,
-        disturbance=_levels(delay=50), disturbance_key=jax.random.key(1), max_delay_steps=4,
-    )  # fmt: skip
-    assert np.flatnonzero(np.asarray(res.traj.delta_rad[:, 0]) != 0.0)[0] == 4
+    k0 = 10
+    de = np.asarray(_fly(jax.random.key(1), -0.05, k0, delay=50).delta_rad[:, 0])
+    assert np.flatnonzero(de != 0.0)[0] == k0 + MAX_DELAY
 
 
 def test_gust_is_stationary_and_scored_air_relative():
@@ -129,18 +142,19 @@ def test_gust_is_stationary_and_scored_air_relative():
     np.testing.assert_array_equal(np.asarray(air_relative(body, jnp.zeros(3))), np.asarray(to_wind(body)))
     x = air_relative(body, jnp.array([0.0, 0.0, 30.0]))  # a 30 ft/s downward body-axis gust: alpha falls
     assert float(x[1]) < float(X0[1]) - 0.04
-    res = closed_loop(
-        _probe(0.0), harv(), X0, REF, jax.random.key(0), 200,
-        disturbance=_levels(gust=10.0, tau=0.2), disturbance_key=jax.random.key(4),
-    )  # fmt: skip
-    seen = np.asarray(res.traj.info["x_seen"])
-    np.testing.assert_array_equal(
-        seen, np.asarray(res.traj.x_wind)
-    )  # no noise: the controller sees the scored state
+    traj = _fly(jax.random.key(4), gust=10.0, tau=0.2)
+    seen = np.asarray(traj.info["x_seen"])  # no noise: the controller sees the scored state
+    np.testing.assert_array_equal(seen, np.asarray(traj.x_wind))
+
+
+@jax.jit
+def _model_mass_seen(params, model_params):
+    """The mass the probe was built on, flying ``params`` with the controller's model ``model_params``."""
+    res = closed_loop(PROBE, params, X0, REF, jax.random.key(0), 3, model_params=model_params)
+    return res.traj.info["model_mass"][0]
 
 
 def test_model_error_builds_controllers_on_the_nominal_aircraft():
-    ctrl = _probe(0.0)
     nominal_mass = float(harv().mass_slug)
     for knows in (False, True):
         spec = DisturbanceSpec(model_error=2.0, controller_knows_aircraft=knows)
@@ -148,8 +162,7 @@ def test_model_error_builds_controllers_on_the_nominal_aircraft():
         plant_mass = np.asarray(inputs.params.mass_slug)
         assert np.ptp(plant_mass) > 0.05 * nominal_mass  # the plant is randomized (2x the ranges)
         run = jax.tree.map(lambda a: a[0], inputs)
-        res = closed_loop(ctrl, run.params, X0, REF, jax.random.key(0), 3, model_params=run.model_params)
-        seen = float(res.traj.info["model_mass"][0])
+        seen = float(_model_mass_seen(run.params, run.model_params))
         assert seen == pytest.approx(plant_mass[0] if knows else nominal_mass)
 
 
@@ -248,16 +261,14 @@ def test_filter_suffix_in_the_registry():
 
 def test_a_users_controller_flies_in_the_monte_carlo(tmp_path):
     """``monte_carlo`` takes name -> Controller: a user's own controller beside a registered one; runs.csv
-    gets the disturbance levels as its last columns."""
+    gets the disturbance levels as its last columns. Both fly the same probe: the second rollout's program
+    is the first's, which the test run's compilation cache (conftest) reads back instead of compiling."""
     import csv
 
     from harv_jax.evaluation.mc_study import monte_carlo, write_runs_csv
 
     spec = DisturbanceSpec(noise_scale=1.0, delay_ms=30.0)
-    study = monte_carlo(
-        {"hold": _probe(0.0), "smc": _probe(-0.03)}, None, 3, 0.349, 1.0, 1, False,
-        disturbances=spec,
-    )  # fmt: skip
+    study = monte_carlo({"hold": PROBE, "smc": PROBE}, None, 3, 0.349, 1.0, 1, False, disturbances=spec)
     assert list(study.outputs) == ["hold", "smc"] and "vs_smc" in study.summary["controllers"]["hold"]
     assert study.summary["disturbances"]["delay_steps"] == 3
     write_runs_csv(tmp_path / "runs.csv", study.x0_wind, study.outputs, spec)

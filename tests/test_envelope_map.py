@@ -148,9 +148,11 @@ def test_bad_flags_are_one_line_errors(monkeypatch, capsys, tmp_path, args, need
     assert not (tmp_path / "o").exists()
 
 
-def test_cli_writes_outputs_and_refuses_existing_dir(monkeypatch, capsys, tmp_path):
+def test_cli_writes_outputs_and_refuses_existing_dir(monkeypatch, capsys, tmp_path, damper):
+    """The files of ``envelope`` (a cheap registered controller: the point is the outputs, not the SMC)."""
     out = tmp_path / "env"
-    args = ["--grid", "V0=300,900:alpha0", "--n", "3", "--duration", "1", "--fixed", "h0=20000"]
+    args = ["--grid", "V0=300,900:alpha0", "--n", "3", "--duration", "1", "--fixed", "h0=20000",
+            "--controller", damper]  # fmt: skip
     code, stdout, err = _run(monkeypatch, capsys, *args, "--out", str(out))
     assert code == 0, err
     for f in ("envelope_recovery.png", "envelope_time.png", "envelope.json", "envelope_grid.csv"):
@@ -159,13 +161,13 @@ def test_cli_writes_outputs_and_refuses_existing_dir(monkeypatch, capsys, tmp_pa
     assert doc["grid"]["x"]["name"] == "V0" and doc["grid"]["x"]["values"] == [300.0, 600.0, 900.0]
     assert doc["grid"]["fixed_state"]["h"] == 20_000.0 and "V" not in doc["grid"]["fixed_state"]
     assert doc["runs_per_controller"] == 9 and doc["seed"] == 0
-    smc = doc["controllers"]["smc"]
+    smc = doc["controllers"][damper]
     assert sum(smc["outcome_counts"].values()) == 9
     assert set(smc["wall_time_s"]) == {"compile", "run"}
     with np.load(out / "envelope_grid.npz") as z:
-        assert z["smc/outcome"].shape == (3, 3) and z["x0_wind"].shape == (3, 3, 10)
+        assert z[f"{damper}/outcome"].shape == (3, 3) and z["x0_wind"].shape == (3, 3, 10)
         assert np.all(z["x0_wind"][:, :, 9] == 20_000.0)
-        outcome = z["smc/outcome"]
+        outcome = z[f"{damper}/outcome"]
     with (out / "envelope_grid.csv").open() as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == 9

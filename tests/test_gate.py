@@ -23,8 +23,11 @@ G = default_hybrid_gains(jnp.float32)
 NO_MU_BLEND = jnp.zeros((3,), bool)
 WIDE_LO, WIDE_HI = jnp.full((3,), -10.0), jnp.full((3,), 10.0)
 DT = 0.01
+#: XLA's fastest compile (LLVM at -O0): for the tests that apply the hybrid a few times.
+FAST_COMPILE = {"xla_backend_optimization_level": 0}
 
 
+@jax.jit
 def _bounds(s):
     return jax.vmap(lambda si: certificate_bounds(si, G.smc, G.gate, "sat", DT))(s)
 
@@ -45,34 +48,40 @@ def _gate(u_rl, u_fb, a, s, lo, hi, unchecked=NO_MU_BLEND, force=False):
     return gate(u_rl, u_fb, a, s, lo, hi, G.smc, G.gate, "sat", DT, unchecked, jnp.asarray(force))
 
 
+@jax.jit
+def _gate_wide(u_rl, u_fb, a, s, unchecked, force):
+    """``_gate`` over a batch in the wide box; ``unchecked`` and ``force`` traced (one compile per size)."""
+    return jax.vmap(lambda *z: _gate(*z, WIDE_LO, WIDE_HI, unchecked, force))(u_rl, u_fb, a, s)
+
+
 def test_gate_is_the_identity_where_the_policy_meets_the_condition():
-    a, s, u_rl, _ = _synthetic(jax.random.key(0), 256)
+    a, s, u_rl, _ = _synthetic(jax.random.key(0), 512)  # the batch size of the next test: one compile
     upper, lower = _bounds(s)
     # a policy whose residual r(u_RL) = -A u_fb meets -L <= sign(s) r <= U on every channel
-    frac = jax.random.uniform(jax.random.key(1), (256, 3), minval=0.0, maxval=0.99)
-    side = jax.random.bernoulli(jax.random.key(6), 0.5, (256, 3))
+    frac = jax.random.uniform(jax.random.key(1), (512, 3), minval=0.0, maxval=0.99)
+    side = jax.random.bernoulli(jax.random.key(6), 0.5, (512, 3))
     r = jnp.where(s >= 0, 1.0, -1.0) * frac * jnp.where(side, upper, -lower)
     u_fb = -jnp.linalg.solve(a, r[..., None])[..., 0]
-    res = jax.jit(jax.vmap(lambda *z: _gate(*z, WIDE_LO, WIDE_HI)))(u_rl, u_fb, a, s)
+    res = _gate_wide(u_rl, u_fb, a, s, NO_MU_BLEND, False)
     assert bool(jnp.all(res.zeta == 0.0))
     np.testing.assert_array_equal(res.u_raw_rad, u_rl)  # bit for bit
 
 
 def test_least_zeta_meets_the_condition_with_equality_and_zeta_one_is_the_smc_command():
     a, s, u_rl, u_fb = _synthetic(jax.random.key(2), 512)
-    res = jax.jit(jax.vmap(lambda *z: _gate(*z, WIDE_LO, WIDE_HI)))(u_rl, u_fb, a, s)
+    res = _gate_wide(u_rl, u_fb, a, s, NO_MU_BLEND, False)
     upper, lower = _bounds(s)
-    q = jax.vmap(signed_residual)(a, res.u_raw_rad, u_rl + u_fb, s)
+    q = jax.jit(jax.vmap(signed_residual))(a, res.u_raw_rad, u_rl + u_fb, s)
     assert bool(jnp.all((q <= upper + 1e-4) & (q >= -lower - 1e-4)))
     inner = (res.zeta > 0) & (res.zeta < 1)
     assert int(jnp.sum(inner)) > 50 and int(jnp.sum(res.zeta == 0)) > 50
     bound = jnp.where(q > 0, upper, -lower)
     np.testing.assert_allclose(q[inner], bound[inner], atol=1e-4)  # least zeta: the condition is tight
-    forced = jax.vmap(lambda *z: _gate(*z, WIDE_LO, WIDE_HI, force=True))(u_rl, u_fb, a, s)
+    forced = _gate_wide(u_rl, u_fb, a, s, NO_MU_BLEND, True)
     assert bool(jnp.all(forced.zeta == 1.0))
     np.testing.assert_array_equal(forced.u_raw_rad, u_rl + u_fb)
     mu_blend = jnp.array([False, False, True])
-    res_mu = jax.vmap(lambda *z: _gate(*z, WIDE_LO, WIDE_HI, unchecked=mu_blend))(u_rl, u_fb, a, s)
+    res_mu = _gate_wide(u_rl, u_fb, a, s, mu_blend, False)
     assert bool(jnp.all(res_mu.zeta[:, 2] == 1.0))
 
 
@@ -132,13 +141,14 @@ def test_gated_hybrid_vmaps_over_aircraft_equal_to_single_runs_with_one_trace(tm
     params = jax.vmap(lambda s: base.replace(mass_slug=base.mass_slug * s))(jnp.linspace(0.9, 1.1, n))
     xs = sample_table_states(jax.random.key(4), n)
     state = jax.vmap(hy.init)(params)
-    f = jax.jit(_apply_batch, static_argnums=0)
+    f = jax.jit(_apply_batch, static_argnums=0, compiler_options=FAST_COMPILE)
     u, state2, info = f(hy, params, xs, state)
     f(hy, params, xs, state2)  # second call: no retrace
     assert info["zeta_channels"].shape == (n, 3) and info["zeta"].shape == (n,)
+    single = jax.jit(hy.apply, compiler_options=FAST_COMPILE)
     for i in range(n):
         p_i = jax.tree.map(lambda a, i=i: a[i], params)
-        u_i, _, info_i = jax.jit(hy.apply)(hy.init(p_i), xs[i], REF, jax.random.key(0))
+        u_i, _, info_i = single(hy.init(p_i), xs[i], REF, jax.random.key(0))
         np.testing.assert_allclose(u[i], u_i, rtol=1e-5, atol=1e-6)
         np.testing.assert_allclose(info["zeta_channels"][i], info_i["zeta_channels"], atol=1e-5)
 

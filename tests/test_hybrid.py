@@ -253,17 +253,18 @@ def test_vmaps_over_aircraft_with_one_trace():
     hy = make_hybrid(_linear_policy(0), HybridConfig(schedule="continuous"))
     state = jax.vmap(hy.init)(params)
     xs = jnp.tile(X0, (n, 1)).at[:, 1].set(jnp.linspace(0.1, 0.8, n))
-    f = jax.jit(_apply_batch)
+    f = jax.jit(_apply_batch, compiler_options=FAST_COMPILE)
     u, state, info = f(params, xs, state)
     u2, state, _ = f(params, xs, state)
     assert u.shape == (n, 3) and info["zeta"].shape == (n,)
     floor = float(default_hybrid_gains().zeta_floor)
     assert floor > 0 and bool(jnp.all((info["zeta"] >= floor - 1e-6) & (info["zeta"] <= 1.0)))
-    # the batch equals a loop of single applies
+    # the batch equals a loop of single applies (one compile serves the n of them)
+    single = jax.jit(
+        lambda p, x: hy.apply(hy.init(p), x, REF, jax.random.key(0))[0], compiler_options=FAST_COMPILE
+    )
     for i in range(n):
-        u_i, _, _ = hy.apply(
-            hy.init(jax.tree.map(lambda a, i=i: a[i], params)), xs[i], REF, jax.random.key(0)
-        )
+        u_i = single(jax.tree.map(lambda a, i=i: a[i], params), xs[i])
         np.testing.assert_allclose(u[i], u_i, rtol=1e-5, atol=1e-6)
 
 

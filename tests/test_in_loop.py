@@ -4,6 +4,7 @@ loop."""
 
 from __future__ import annotations
 
+import functools
 import json
 import subprocess
 import sys
@@ -27,46 +28,61 @@ ENV = make_env(EnvConfig(episode_steps=200))
 PARAMS = ENV.default_params()
 
 
-def _first_steps(loop_env, actions: jnp.ndarray, n_steps: int = 50) -> jnp.ndarray:
-    """Wind states of ``n_steps`` steps from the same reset, flying the constant ``actions`` [B, 3]."""
+#: XLA's fastest compile (LLVM at -O0): these tests fly a few steps, their compile dominates.
+FAST_COMPILE = {"xla_backend_optimization_level": 0}
+ACTIONS = jnp.asarray([[0.5, -0.5, 0.3], [-0.9, 0.9, -0.2], [0.0, 0.0, 0.0]], jnp.float32)
+N_STEPS = 50
+
+
+@functools.partial(jax.jit, static_argnums=(0, 2), compiler_options=FAST_COMPILE)
+def _first_steps(loop_env, actions: jnp.ndarray, auto_reset: bool):
+    """``N_STEPS`` steps from the same reset (the same episode in every row) flying the constant ``actions``
+    [B, 3] with ``step`` (the trainer's, auto-reset) or ``step_no_reset``: (the reset's observations [B, O],
+    wind states [N_STEPS, B, 10], the first step's observations [B, O], rewards [B] and info)."""
     b = actions.shape[0]
-    keys = jnp.broadcast_to(jax.random.key(3), (b,))  # the same episode for every row
-    _, st = jax.vmap(loop_env.reset, in_axes=(0, None))(keys, PARAMS)
+    keys = jnp.broadcast_to(jax.random.key(3), (b,))
+    obs0, st = jax.vmap(loop_env.reset, in_axes=(0, None))(keys, PARAMS)
+    step = jax.vmap(loop_env.step if auto_reset else loop_env.step_no_reset, in_axes=(0, 0, 0, None))
 
     def body(st, k):
-        st = jax.vmap(loop_env.step_no_reset, in_axes=(0, 0, 0, None))(
-            jnp.broadcast_to(k, (b,)), st, actions, PARAMS
-        )[1]
-        return st, st.env.wind
+        out = step(jnp.broadcast_to(k, (b,)), st, actions, PARAMS)
+        st = out[1]
+        return st, (st.env.wind, (out[0], out[2], out[-1]))
 
-    return jax.lax.scan(body, st, jax.random.split(jax.random.key(4), n_steps))[1]
+    _, (wind, firsts) = jax.lax.scan(body, st, jax.random.split(jax.random.key(4), N_STEPS))
+    return obs0, wind, jax.tree.map(lambda a: a[0], firsts)
 
 
-ACTIONS = jnp.asarray([[0.5, -0.5, 0.3], [-0.9, 0.9, -0.2], [0.0, 0.0, 0.0]], jnp.float32)
+@functools.cache
+def _flight(loop: str):
+    """The in-loop env of the schedule ``loop`` and its ``_first_steps`` with ACTIONS, flown once per module
+    (``gated`` with the trainer's step: its compile serves two tests)."""
+    loop_env = make_in_loop_env(ENV, loop)
+    return loop_env, _first_steps(loop_env, ACTIONS, loop == "gated")
 
 
 def test_zeta_one_flies_the_smc_whatever_the_policy():
     """With ``always`` (zeta = 1) u = u_SMC: the action does not change the flight (up to float round-off)."""
-    x = _first_steps(make_in_loop_env(ENV, "always"), ACTIONS)
+    _, (_, x, _) = _flight("always")
     np.testing.assert_allclose(x[:, 0], x[:, 1], rtol=1e-5, atol=1e-5)
     np.testing.assert_allclose(x[:, 0], x[:, 2], rtol=1e-5, atol=1e-5)
 
 
 def test_the_policy_acts_through_the_gate():
     """With ``gated`` the action changes the flight: the policy is in the loop."""
-    x = _first_steps(make_in_loop_env(ENV, "gated"), ACTIONS)
+    _, (_, x, _) = _flight("gated")
     assert float(jnp.max(jnp.abs(x[:, 0] - x[:, 1]))) > 1e-3
 
 
 def test_interface_and_info():
-    loop_env = make_in_loop_env(ENV, "gated")
-    obs, st = jax.jit(loop_env.reset)(jax.random.key(0), PARAMS)
-    chex.assert_shape(obs, (loop_env.observation_size,))
-    obs, st, r, done, info = jax.jit(loop_env.step)(jax.random.key(1), st, ACTIONS[0], PARAMS)
+    """The reset's and the (auto-reset) step's outputs of one env (the first row of the gated flight)."""
+    loop_env, (obs0, _, (obs, r, info)) = _flight("gated")
+    chex.assert_shape(obs0[0], (loop_env.observation_size,))
+    info = jax.tree.map(lambda a: a[0], info)
     assert set(info["loop"]) == {"zeta", "policy_unmodified", "fallback"}
     m = harv_episode_metrics(info)  # the trainer's HARV metrics read the wrapped env's info
     assert set(m) >= {"recovered", "terminated"}
-    chex.assert_tree_all_finite((obs, r))
+    chex.assert_tree_all_finite((obs[0], r[0]))
 
 
 def test_trainer_traces_once_and_its_policies_record_the_loop(tmp_path):

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 from harv_jax.aircraft import harv
 from harv_jax.cli import app
 from harv_jax.control.smc import make_smc
-from harv_jax.evaluation.closed_loop import evaluate
+from harv_jax.evaluation.closed_loop import closed_loop, score
 from harv_jax.evaluation.monte_carlo import (
     TERMINAL_WINDOW_S,
     run_mc,
@@ -51,13 +51,23 @@ def test_outcome_counts_sum_to_runs(mc32):
         }
 
 
+@jax.jit
+def _single_run(params, x0_wind, key):
+    """One unbatched closed-loop SMC run scored as ``evaluate`` scores it: (RunMetrics, the N_STEPS + 1 wind
+    states). Module level: one compile serves the tests below."""
+    res = closed_loop(make_smc(), params, x0_wind, REF, key, N_STEPS)
+    return score(res, REF, params)
+
+
+def _run_i(inputs, i):
+    return _single_run(jax.tree.map(lambda a: a[i], inputs.params), inputs.x0_wind[i], inputs.keys[i])
+
+
 def test_mc_equals_single_runs(mc32):
-    """The chunked vmapped MC gives, run by run, what 32 single `evaluate` runs give."""
+    """The chunked vmapped MC gives, run by run, what 32 single closed-loop runs give."""
     inputs, out, _ = mc32
-    single = jax.jit(lambda p, x0, k: evaluate(make_smc(), p, x0, REF, k, N_STEPS)[0])
     for i in range(32):
-        p_i = jax.tree.map(lambda a, i=i: a[i], inputs.params)
-        m = single(p_i, inputs.x0_wind[i], inputs.keys[i])
+        m, _ = _run_i(inputs, i)
         assert int(m.outcome) == int(out.metrics.outcome[i])
         np.testing.assert_allclose(np.asarray(m.final_error_rad), out.metrics.final_error_rad[i], atol=1e-5)
         # altitudes near 25,000 ft carry a float32 ulp of 0.002 ft
@@ -91,13 +101,9 @@ def test_default_chunk_is_automatic_recorded_and_equal_in_outcomes(mc32):
 
 def test_terminal_error_is_mean_over_last_second(mc32):
     """Terminal error = mean tracking error over the last 1 s, checked on a recomputed trajectory."""
-    from harv_jax.evaluation.closed_loop import closed_loop
-
     inputs, out, _ = mc32
     i = 5
-    p_i = jax.tree.map(lambda a: a[i], inputs.params)
-    res = closed_loop(make_smc(), p_i, inputs.x0_wind[i], REF, inputs.keys[i], N_STEPS)
-    x_all = np.concatenate([np.asarray(res.traj.x_wind), np.asarray(res.x_final_wind)[None]])
+    x_all = np.asarray(_run_i(inputs, i)[1])
     n_term = int(round(TERMINAL_WINDOW_S / 0.01))
     expected = np.mean(np.asarray(tracking_errors(jnp.asarray(x_all[-n_term:]), REF)), axis=0)
     np.testing.assert_allclose(out.terminal_error_rad[i], expected, atol=1e-5)
@@ -120,9 +126,10 @@ def test_summary_percentiles_match_numpy(mc32):
 
 def test_common_random_numbers():
     """Same seed -> identical initial states and aircraft, whatever the controller; other seed differs."""
-    a = sample_mc_inputs(jax.random.key(7), 16, harv(), randomize=True)
-    b = sample_mc_inputs(jax.random.key(7), 16, harv(), randomize=True)
-    c = sample_mc_inputs(jax.random.key(8), 16, harv(), randomize=True)
+    sample = jax.jit(sample_mc_inputs, static_argnums=1, static_argnames="randomize")  # one compile
+    a = sample(jax.random.key(7), 16, harv(), randomize=True)
+    b = sample(jax.random.key(7), 16, harv(), randomize=True)
+    c = sample(jax.random.key(8), 16, harv(), randomize=True)
     chex_equal = jax.tree.map(
         lambda x, y: bool(jnp.all(x == y)), (a.x0_wind, a.params), (b.x0_wind, b.params)
     )
@@ -155,14 +162,16 @@ def test_bad_flags_one_line_error(tmp_path, args, fragment):
     assert not (tmp_path / "o").exists()
 
 
-def test_cli_writes_outputs_and_refuses_existing_dir(tmp_path):
+def test_cli_writes_outputs_and_refuses_existing_dir(tmp_path, damper):
+    """The files of ``mc`` (a cheap registered controller: the point is the outputs, not the SMC)."""
     out = tmp_path / "mc"
-    args = ["mc", "--runs", "8", "--duration", "3", "--chunk", "8", "--out", str(out), "--save-trajectories"]
+    args = ["mc", "--controller", damper, "--runs", "8", "--duration", "3", "--chunk", "8", "--out", str(out),
+            "--save-trajectories"]  # fmt: skip
     r = CliRunner().invoke(app, args, standalone_mode=False)
     assert r.exception is None, r.output
     # the bands are the numpy percentiles of the saved trajectories
-    tr = np.load(out / "trajectories_smc.npz", allow_pickle=False)
-    bands = np.loadtxt(out / "bands_smc.csv", delimiter=",", skiprows=1)
+    tr = np.load(out / "trajectories_damper.npz", allow_pickle=False)
+    bands = np.loadtxt(out / "bands_damper.csv", delimiter=",", skiprows=1)
     np.testing.assert_allclose(bands[:, 0], tr["t_s"], atol=1e-9)
     deg = np.degrees(tr["alpha_beta_mu_rad"])
     assert deg.shape[0] == 8
@@ -172,8 +181,8 @@ def test_cli_writes_outputs_and_refuses_existing_dir(tmp_path):
                 bands[:, 1 + 5 * i + j], np.percentile(deg[:, :, i], q, axis=0), rtol=1e-5, atol=1e-5
             )
     s = json.loads((out / "summary.json").read_text())
-    assert s["runs"] == 8 and sum(s["controllers"]["smc"]["outcomes"].values()) == 8
-    for f in ("bands_smc.png", "terminal_errors.png", "runs.csv"):
+    assert s["runs"] == 8 and sum(s["controllers"][damper]["outcomes"].values()) == 8
+    for f in ("bands_damper.png", "terminal_errors.png", "runs.csv"):
         assert (out / f).stat().st_size > 0
     before = (out / "summary.json").read_text()
     r = CliRunner().invoke(app, args, standalone_mode=False)

@@ -3,7 +3,9 @@ below; a traced schedule; the registry name; a short Monte Carlo without NaN."""
 
 from __future__ import annotations
 
+import functools
 import json
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
@@ -50,13 +52,20 @@ def _fly(
     return out
 
 
+@functools.cache
+def _smc(switching: str = "sat") -> tuple[Controller, Callable]:
+    """``make_smc`` with ``switching`` and its jitted apply, built once: the tests below share its compile."""
+    ctrl = make_smc(SMCConfig(switching=switching))
+    return ctrl, jax.jit(ctrl.apply)
+
+
 @pytest.mark.parametrize("switching", ["sat", "sign"])
 def test_command_is_the_smc_for_the_scheduled_reference(switching):
     """Above V_switch: the SMC's command with alpha_d -> alpha_brake; below: the SMC's exactly. Over a
     sequence that crosses V_switch both ways, so the carried state (integral, reset) matches too."""
-    cfg = SMCConfig(switching=switching)
-    brake, smc = make_smc_brake(cfg), make_smc(cfg)
-    brake_apply, smc_apply = jax.jit(brake.apply), jax.jit(smc.apply)
+    brake = make_smc_brake(SMCConfig(switching=switching))
+    brake_apply = jax.jit(brake.apply)
+    smc, smc_apply = _smc(switching)
     speeds = [800.0, 700.0, 600.0, 450.0, 400.0, 550.0, 300.0]
     states = [_state(v, k) for k, v in enumerate(speeds)]
     brake_ref = REF.at[0].set(ALPHA_BRAKE_RAD)
@@ -91,7 +100,8 @@ def test_schedule_is_traced_and_reported():
     assert len(traces) == 1
     assert bool(info_brake["braking"]) and float(info_brake["alpha_ref_rad"]) == pytest.approx(1.0)
     assert not bool(info_high["braking"]) and float(info_high["alpha_ref_rad"]) == pytest.approx(REF[0])
-    u_smc = _fly(make_smc(), [x], [REF])[0]
+    smc, smc_apply = _smc()
+    u_smc = _fly(smc, [x], [REF], smc_apply)[0]
     np.testing.assert_array_equal(np.asarray(u_high), u_smc)
     assert not np.array_equal(np.asarray(u_brake), u_smc)
 
