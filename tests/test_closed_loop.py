@@ -9,15 +9,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from compile_options import FAST_COMPILE
 
 from harv_jax.aircraft import harv
 from harv_jax.control import Controller, default_gains, make_smc
 from harv_jax.dynamics import from_wind
 from harv_jax.evaluation import closed_loop
 from harv_jax.units import RAD_PER_DEG
-
-#: Tests run short horizons: trade XLA backend optimization for ~30% less compile time.
-FAST_COMPILE = {"xla_backend_optimization_level": 0}
 
 DT = 0.01
 N_STEPS = 600  # 6 s per call; longer flights chain calls (one compile for the file)

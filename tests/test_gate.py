@@ -8,6 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from compile_options import FAST_COMPILE
 from policy_fixtures import FIXTURE_POLICIES, write_fixture_policies
 
 from harv_jax.aircraft import harv
@@ -23,8 +24,6 @@ G = default_hybrid_gains(jnp.float32)
 NO_MU_BLEND = jnp.zeros((3,), bool)
 WIDE_LO, WIDE_HI = jnp.full((3,), -10.0), jnp.full((3,), 10.0)
 DT = 0.01
-#: XLA's fastest compile (LLVM at -O0): for the tests that apply the hybrid a few times.
-FAST_COMPILE = {"xla_backend_optimization_level": 0}
 
 
 @jax.jit

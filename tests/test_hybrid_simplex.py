@@ -9,6 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from compile_options import FAST_COMPILE
 
 from harv_jax.aircraft import harv
 from harv_jax.control import make_smc
@@ -25,7 +26,6 @@ from harv_jax.control.smc import default_gains
 from harv_jax.evaluation import closed_loop
 from harv_jax.task.scenarios import sample_table_states
 
-FAST_COMPILE = {"xla_backend_optimization_level": 0}
 REF = jnp.array([0.349, 0.0, 0.0])
 DT = 0.01
 #: A disturbed state inside the default box: alpha 0.6, p 0.5, r 0.3.

@@ -15,6 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from compile_options import FAST_COMPILE
 
 from harv_jax.env import EnvConfig, make_env
 from harv_jax.env.episode_metrics import harv_episode_metrics
@@ -28,8 +29,6 @@ ENV = make_env(EnvConfig(episode_steps=200))
 PARAMS = ENV.default_params()
 
 
-#: XLA's fastest compile (LLVM at -O0): these tests fly a few steps, their compile dominates.
-FAST_COMPILE = {"xla_backend_optimization_level": 0}
 ACTIONS = jnp.asarray([[0.5, -0.5, 0.3], [-0.9, 0.9, -0.2], [0.0, 0.0, 0.0]], jnp.float32)
 N_STEPS = 50
 

@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from compile_options import FAST_COMPILE
 
 from harv_jax.aircraft import harv
 from harv_jax.control.lie import (
@@ -23,9 +24,6 @@ from harv_jax.control.lie import (
     wind_roll_rate_radps,
 )
 from harv_jax.dynamics.eom import derivatives
-
-#: Tests run short horizons: trade XLA backend optimization for ~30% less compile time.
-FAST_COMPILE = {"xla_backend_optimization_level": 0}
 
 # Wind states [V, alpha, beta, p, q, r, mu, gamma, chi, h]. alpha values sit inside table segments
 # (breakpoints every 4 deg from -14 deg), so central differences do not straddle a kink.

@@ -7,6 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from compile_options import FAST_COMPILE
 
 from harv_jax.aircraft import harv
 from harv_jax.task.scenarios import (
@@ -22,9 +23,6 @@ from harv_jax.task.scenarios import (
 from harv_jax.task.spec import ALPHA_TARGET_BOUNDS_RAD, RESET_BOUNDS, RESET_STATE_NAMES
 from harv_jax.task.spec import H0_FT as DEFAULT_H0_FT
 from harv_jax.units import RAD_PER_DEG
-
-#: Tests run short horizons: trade XLA backend optimization for ~30% less compile time.
-FAST_COMPILE = {"xla_backend_optimization_level": 0}
 
 
 def test_reset_bounds_are_the_paper_table():

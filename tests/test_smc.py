@@ -7,14 +7,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from compile_options import FAST_COMPILE
 
 from harv_jax.aircraft import harv
 from harv_jax.control import SMCConfig, default_gains, guarded_solve, make_smc, output_lie_terms
 from harv_jax.control.lie import smc_lie_terms
 from harv_jax.units import RAD_PER_DEG
-
-#: Tests run short horizons: trade XLA backend optimization for ~30% less compile time.
-FAST_COMPILE = {"xla_backend_optimization_level": 0}
 
 REF = jnp.array([0.349, 0.0, 0.0])
 KEY = jax.random.key(0)
