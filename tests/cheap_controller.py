@@ -1,9 +1,14 @@
-"""A cheap controller for the tests whose point is not the SMC: it compiles in seconds, the SMC in tens."""
+"""A cheap controller for the tests whose point is not the SMC (it compiles in seconds, the SMC in tens), and
+registering a test controller for the ``with`` block."""
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Callable, Iterator
+
 import jax.numpy as jnp
 
+from harv_jax.control import registry
 from harv_jax.control.base import Controller
 
 
@@ -21,3 +26,13 @@ def make_damper() -> Controller:
         return jnp.stack([-0.05 - 0.5 * q, -0.3 * p, 0.3 * r]).astype(x_wind.dtype), state, {}
 
     return Controller(init=init, apply=apply)
+
+
+@contextlib.contextmanager
+def registered(name: str, make: Callable[[], Controller], help: str) -> Iterator[str]:
+    """``make()`` registered as the option-less controller ``name`` for the ``with`` block (removed after)."""
+    registry.register(name, lambda opts: make(), options=(), help=help)
+    try:
+        yield name
+    finally:
+        registry.CONTROLLERS.pop(name, None)

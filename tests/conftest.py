@@ -48,10 +48,7 @@ def x64():
 def damper():
     """``cheap_controller.make_damper`` registered as the controller ``damper`` (removed afterwards): for the
     command-line tests whose point is the command's files and flags, not the SMC (it compiles in seconds)."""
-    from cheap_controller import make_damper
+    from cheap_controller import make_damper, registered
 
-    from harv_jax.control import registry
-
-    registry.register("damper", lambda opts: make_damper(), options=(), help="rate damper (tests)")
-    yield "damper"
-    registry.CONTROLLERS.pop("damper", None)
+    with registered("damper", make_damper, "rate damper (tests)") as name:
+        yield name

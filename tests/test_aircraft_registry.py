@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from cheap_controller import registered
 from cli_util import cli_run
 
 from harv_jax.aircraft import (
@@ -28,7 +29,6 @@ from harv_jax.aircraft import (
     unregister_aircraft,
 )
 from harv_jax.aircraft.aero import coefficients
-from harv_jax.control import registry
 from harv_jax.control.base import Controller
 from harv_jax.env.config import EnvConfig, default_params
 
@@ -88,9 +88,8 @@ def make_hold() -> Controller:
 
 @pytest.fixture
 def hold():
-    registry.register("hold", lambda opts: make_hold(), options=(), help="constant deflection")
-    yield "hold"
-    registry.CONTROLLERS.pop("hold", None)
+    with registered("hold", make_hold, "constant deflection") as name:
+        yield name
 
 
 # ------------------------------------------------------------------------------------------- registry

@@ -12,6 +12,7 @@ import json
 
 import jax.numpy as jnp
 import pytest
+from cheap_controller import registered
 from cli_util import cli_run
 
 from harv_jax.control import registry
@@ -38,9 +39,8 @@ def make_constant(u_rad: tuple[float, float, float] = TOY_U_RAD) -> Controller:
 
 @pytest.fixture
 def toy():
-    registry.register("toy", lambda opts: make_constant(), options=(), help="constant deflection")
-    yield "toy"
-    registry.CONTROLLERS.pop("toy", None)
+    with registered("toy", make_constant, "constant deflection") as name:
+        yield name
 
 
 def test_register_adds_one_entry_and_refuses_duplicates(toy):

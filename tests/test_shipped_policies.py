@@ -4,15 +4,12 @@ shipped names resolve."""
 from __future__ import annotations
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from harv_jax.aircraft import harv
-from harv_jax.control.rl import make_rl_controller
 from harv_jax.errors import UsageError
-from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.policy_eval import make_eval_batch
+from harv_jax.evaluation.policy_eval import make_eval_batch, make_policy_eval
 from harv_jax.policy import resolve_policy, shipped_path
 
 
@@ -23,18 +20,12 @@ def batch():
 
 
 def _recovered(policy: str, batch) -> np.ndarray:
-    """Per run of ``batch``: recovered within 60 s, RL-only, scored as the Monte Carlo scores its runs
-    (``closed_loop`` then ``score``). Every run starts at its deflections (the spin at its pro-spin controls),
-    so one vmapped rollout, one compile, flies them all."""
-    ctrl = make_rl_controller(resolve_policy(policy).deterministic)
-    ref = jnp.asarray([0.349, 0.0, 0.0])
-
-    def run(params, x0, delta0, key):
-        res = closed_loop(ctrl, params, x0, ref, key, 6000, 0.01, delta0)
-        return score(res, ref, params, 0.01)[0].recovered
-
-    keys = jax.random.split(jax.random.key(0), batch.x0_wind.shape[0])
-    return np.asarray(jax.jit(jax.vmap(run))(batch.params, batch.x0_wind, batch.delta0_rad, keys))
+    """Per run of ``batch``: recovered within 60 s, RL-only, scored as the Monte Carlo scores its runs (the
+    trainer's evaluation, ``make_policy_eval``: the spin starts at its pro-spin controls). One vmapped
+    rollout, one compile, flies them all."""
+    act = resolve_policy(policy).deterministic
+    evaluate = make_policy_eval(lambda params, normalizer, obs: act(obs), batch)
+    return np.asarray(jax.jit(evaluate)(None, None)["recovered"])
 
 
 def test_default_policy_recovers_on_its_own(batch):
