@@ -102,6 +102,9 @@ class PPOBatch(NamedTuple):
         advantage: [M] GAE advantage.
         target: [M] value target (lambda-return).
         teacher_action: [M, A] a teacher's action in [-1, 1] at ``obs`` (None: no behaviour cloning).
+        next_obs: [M, O] the next observation of the same episode, normalised (None: no temporal smoothness).
+        next_mask: [M] 1.0 where ``next_obs`` belongs to the same episode, else 0.0.
+        perturbed_obs: [M, O] ``obs`` plus Gaussian noise (None: no spatial smoothness).
     """
 
     obs: jax.Array
@@ -111,6 +114,9 @@ class PPOBatch(NamedTuple):
     advantage: jax.Array
     target: jax.Array
     teacher_action: jax.Array | None = None
+    next_obs: jax.Array | None = None
+    next_mask: jax.Array | None = None
+    perturbed_obs: jax.Array | None = None
 
 
 class DemoBatch(NamedTuple):
@@ -132,6 +138,17 @@ def behaviour_cloning(mean: jax.Array, target: jax.Array) -> jax.Array:
     return jnp.mean(jnp.sum(jnp.square(err) + 0.01 * jnp.square(mean - target), axis=-1))
 
 
+def action_change(mean: jax.Array, other: jax.Array, weight: jax.Array | None = None) -> jax.Array:
+    """``mean(sum(|clip(mu, -1, 1) - clip(mu', -1, 1)|))`` over [M, A] policy means, summed over action
+    components, weighted per row by ``weight`` [M] (a weighted mean; None: all rows): the smoothness terms
+    of CAPS (Mysore et al. 2021) on the actions that fly, with the L1 distance of the control's total
+    variation (its gradient does not vanish as the change gets small, as a squared distance's does)."""
+    change = jnp.sum(jnp.abs(jnp.clip(mean, -1.0, 1.0) - jnp.clip(other, -1.0, 1.0)), axis=-1)
+    if weight is None:
+        return jnp.mean(change)
+    return jnp.sum(weight * change) / jnp.maximum(jnp.sum(weight), 1.0)
+
+
 def ppo_loss(
     params: PPOParams,
     batch: PPOBatch,
@@ -144,6 +161,8 @@ def ppo_loss(
     bc_coef: jax.Array | float = 0.0,
     pg_on: jax.Array | float = 1.0,
     demo: DemoBatch | None = None,
+    smooth_temporal_coef: float = 0.0,
+    smooth_spatial_coef: float = 0.0,
 ) -> tuple[jax.Array, dict[str, jax.Array]]:
     """Clipped-surrogate PPO loss with value loss and entropy bonus (SB3 / brax form), and optionally a
     behaviour-cloning term toward a teacher (DAPG-style).
@@ -153,7 +172,10 @@ def ppo_loss(
     of the unclipped and the clipped (``V_old + clip(V - V_old, +-eps)``) squared errors. Advantages are
     standardised over the minibatch when ``normalize_advantage``. ``BC`` is the sum of
     :func:`behaviour_cloning` of the policy mean toward ``batch.teacher_action`` (if given) and of the policy
-    mean at ``demo.obs`` toward ``demo.action`` (if given); with neither there is no BC term at all.
+    mean at ``demo.obs`` toward ``demo.action`` (if given); with neither there is no BC term at all. The
+    smoothness terms (CAPS, Mysore et al. 2021) add ``smooth_temporal_coef * action_change(mu(obs),
+    mu(next_obs), next_mask) + smooth_spatial_coef * action_change(mu(obs), mu(perturbed_obs))`` when their
+    inputs are in the batch; they act on the policy mean, the action that flies at evaluation.
 
     Args:
         params: actor and critic parameters.
@@ -167,6 +189,8 @@ def ppo_loss(
         bc_coef: weight of the behaviour-cloning term (used only with ``batch.teacher_action`` or ``demo``).
         pg_on: factor on the policy-gradient and entropy terms (0: the actor learns from BC alone).
         demo: demonstration pairs cloned besides the rollout's teacher labels (None: none).
+        smooth_temporal_coef: weight of the temporal smoothness term (used only with ``batch.next_obs``).
+        smooth_spatial_coef: weight of the spatial smoothness term (used only with ``batch.perturbed_obs``).
 
     Returns:
         (scalar loss, metrics dict of scalars).
@@ -206,6 +230,14 @@ def ppo_loss(
         bc = functools.reduce(operator.add, bc_terms.values())
         total = actor_loss + value_loss + bc_coef * bc
         extra = {**bc_terms, "bc_coef": jnp.asarray(bc_coef, jnp.float32)}
+    if batch.next_obs is not None:
+        smooth = action_change(mean, networks.policy(params, batch.next_obs)[0], batch.next_mask)
+        total = total + smooth_temporal_coef * smooth
+        extra["smooth_temporal_loss"] = smooth
+    if batch.perturbed_obs is not None:
+        smooth = action_change(mean, networks.policy(params, batch.perturbed_obs)[0])
+        total = total + smooth_spatial_coef * smooth
+        extra["smooth_spatial_loss"] = smooth
     metrics = {
         "total_loss": total,
         "policy_loss": policy_loss,

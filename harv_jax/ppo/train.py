@@ -111,6 +111,12 @@ def make_train(
         raise ValueError("bc_coef > 0 needs an env whose info has 'teacher_action' (a teacher env) or demos")
     demo_data = None if demos is None else demos_lib.check_demos(demos, obs_size, act_size, use_bc)
     n_updates = ppo_config.total_updates(cfg)
+    use_temporal = cfg.smooth_temporal_coef > 0
+    use_spatial = cfg.smooth_spatial_coef > 0
+    smooth_kwargs = {  # absent when off: the plain PPO loss, bit for bit
+        **({"smooth_temporal_coef": cfg.smooth_temporal_coef} if use_temporal else {}),
+        **({"smooth_spatial_coef": cfg.smooth_spatial_coef} if use_spatial else {}),
+    }
 
     def loss_schedule(update_step: jax.Array) -> dict[str, jax.Array]:
         """The BC weight (linear from bc_coef to bc_coef_end) and the policy-gradient switch (pg_start)."""
@@ -213,6 +219,7 @@ def make_train(
             clip_value_eps=clip_value,
             normalize_advantage=cfg.normalize_advantage,
             demo=demo,
+            **smooth_kwargs,
             **schedule,
         )
         updates, opt_state = optimizer.update(grads, opt_state, params)
@@ -239,8 +246,25 @@ def make_train(
             cfg.gae_lambda,
         )
         # [T, N, ...] -> env-major [N * T, ...] so that the sharded env axis stays the leading block.
+        next_obs = next_mask = perturbed = None
+        if use_temporal:  # obs_{t+1} of the same episode (after an end it is the next episode's reset)
+            last_obs = normalise(state.normalizer, state.obs)
+            next_obs = jnp.concatenate([traj.obs[1:], last_obs[None]], axis=0)
+            next_mask = 1.0 - jnp.maximum(traj.termination, traj.truncation)
+        if use_spatial:  # a stream of its own: the other draws stay as without it
+            noise = jax.random.normal(jax.random.fold_in(key_sgd, 2), traj.obs.shape, traj.obs.dtype)
+            perturbed = traj.obs + cfg.smooth_spatial_std * noise
         data = PPOBatch(
-            traj.obs, traj.raw_action, traj.log_prob, traj.value, advantages, targets, traj.teacher_action
+            traj.obs,
+            traj.raw_action,
+            traj.log_prob,
+            traj.value,
+            advantages,
+            targets,
+            traj.teacher_action,
+            next_obs,
+            next_mask,
+            perturbed,
         )
         schedule = loss_schedule(state.update_step)
         data = jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1).reshape((n_batch,) + x.shape[2:]), data)
