@@ -245,7 +245,6 @@ def make_train(
             cfg.gamma,
             cfg.gae_lambda,
         )
-        # [T, N, ...] -> env-major [N * T, ...] so that the sharded env axis stays the leading block.
         next_obs = next_mask = perturbed = None
         if use_temporal:  # obs_{t+1} of the same episode (after an end it is the next episode's reset)
             last_obs = normalise(state.normalizer, state.obs)
@@ -254,6 +253,7 @@ def make_train(
         if use_spatial:  # a stream of its own: the other draws stay as without it
             noise = jax.random.normal(jax.random.fold_in(key_sgd, 2), traj.obs.shape, traj.obs.dtype)
             perturbed = traj.obs + cfg.smooth_spatial_std * noise
+        # [T, N, ...] -> env-major [N * T, ...] so that the sharded env axis stays the leading block.
         data = PPOBatch(
             traj.obs,
             traj.raw_action,
