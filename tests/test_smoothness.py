@@ -88,10 +88,14 @@ def test_descending_the_terms_brings_the_actions_together():
         _, m = ppo_loss(p, batch, nets, vf_coef=0.0, smooth_temporal_coef=1.0, smooth_spatial_coef=1.0)
         return m["smooth_temporal_loss"] + m["smooth_spatial_loss"]
 
+    @jax.jit
+    def step(params, state):
+        updates, state = opt.update(jax.grad(smooth_only)(params), state, params)
+        return optax.apply_updates(params, updates), state
+
     start = float(smooth_only(params))
     for _ in range(100):
-        updates, state = opt.update(jax.grad(smooth_only)(params), state, params)
-        params = optax.apply_updates(params, updates)
+        params, state = step(params, state)
     assert float(smooth_only(params)) < 0.2 * start
 
 
