@@ -1,5 +1,6 @@
-"""The braking SMC (``smc-brake``): the SMC's command for alpha_brake while V > V_switch, the SMC's exactly
-below; a traced schedule; the registry name; a short Monte Carlo without NaN."""
+"""The braking SMCs (``smc-brake``, ``smc-brake-v0``, ``smc-brake-zoom``): the SMC's command for alpha_brake
+while braking, the SMC's exactly otherwise; a traced schedule; the registry names; a short Monte Carlo
+without NaN."""
 
 from __future__ import annotations
 
@@ -20,8 +21,12 @@ from harv_jax.control.smc import SMCConfig, make_smc
 from harv_jax.control.smc_brake import (
     ALPHA_BRAKE_RAD,
     V_SWITCH_FPS,
+    V_ZOOM_FPS,
+    ZOOM_SLOPE_FPS_PER_RAD,
+    ZOOM_V_SWITCH_FPS,
     SMCBrakeState,
     brake_schedule,
+    braking_reference,
     make_smc_brake,
 )
 from harv_jax.errors import UsageError
@@ -184,3 +189,62 @@ def test_smc_brake_v0_chooses_at_engagement_whether_to_brake():
     assert make_smc_brake().init(harv()).schedule.v_engage_max_fps == np.inf  # smc-brake: always brakes
     with pytest.raises(UsageError, match="v_engage_max_fps"):
         brake_schedule(v_engage_max_fps=0.0)
+
+
+def _wind(v_fps: float, gamma_rad: float) -> jnp.ndarray:
+    """_state(v_fps) with flight-path angle ``gamma_rad``."""
+    return _state(v_fps).at[7].set(gamma_rad)
+
+
+@pytest.mark.parametrize(
+    "v_fps, gamma_rad, brakes",
+    [
+        (700.0, 0.0, True),  # inside the band, level
+        (1150.0, 0.0, True),  # below the level-flight bound 1200
+        (1250.0, 0.0, False),  # above it: the zoom climb does the braking
+        (1000.0, 0.5, False),  # bound 1200 - 600 * 0.5 = 900 ft/s
+        (850.0, 0.5, True),
+        (1100.0, -0.5, True),  # a dive does not raise the bound: max(gamma, 0)
+        (550.0, 0.0, False),  # below V_switch = 600 ft/s
+    ],
+)
+def test_smc_brake_zoom_brakes_below_the_zoom_bound(v_fps, gamma_rad, brakes):
+    """Braking iff V_switch < V < V_zoom - k_zoom max(gamma, 0), and the alpha reference follows the flag."""
+    sched = brake_schedule(
+        v_switch_fps=ZOOM_V_SWITCH_FPS, v_zoom_fps=V_ZOOM_FPS, zoom_slope_fps_per_rad=ZOOM_SLOPE_FPS_PER_RAD
+    )
+    ref, braking = braking_reference(_wind(v_fps, gamma_rad), REF, sched)
+    assert bool(braking) is brakes
+    assert float(ref[0]) == pytest.approx(ALPHA_BRAKE_RAD if brakes else float(REF[0]))
+    np.testing.assert_array_equal(np.asarray(ref[1:]), np.asarray(REF[1:]))
+    # smc-brake (no upper bound) brakes at every airspeed above its V_switch, whatever the climb angle
+    _, default_braking = braking_reference(_wind(1900.0, 1.2), REF, brake_schedule())
+    assert bool(default_braking)
+
+
+def test_smc_brake_zoom_flies_smc_brake_or_the_smc_exactly():
+    """The registry's smc-brake-zoom: smc-brake's command while braking, the SMC's in a zoom climb."""
+    zoom = registry.build_controller("smc-brake-zoom")
+    assert zoom.init(harv()).schedule.v_zoom_fps == pytest.approx(V_ZOOM_FPS)
+    braking = [_wind(900.0, 0.1), _wind(800.0, 0.2)]
+    zooming = [_wind(1300.0, 0.0), _wind(1000.0, 0.6)]
+    for states, other in ((braking, make_smc_brake()), (zooming, make_smc())):
+        refs = [REF] * len(states)
+        got, want = _fly(zoom, states, refs, zoom.apply), _fly(other, states, refs, other.apply)
+        for g, w in zip(got, want, strict=True):
+            np.testing.assert_array_equal(g, w)
+
+
+@pytest.mark.parametrize(
+    "kwargs, needle",
+    [
+        ({"v_zoom_fps": 400.0}, "v_zoom_fps 400.0 must be above v_switch_fps (500"),
+        ({"v_zoom_fps": float("nan")}, "v_zoom_fps nan"),
+        ({"zoom_slope_fps_per_rad": -1.0}, "zoom_slope_fps_per_rad -1.0 must be finite and >= 0"),
+        ({"zoom_slope_fps_per_rad": float("inf")}, "zoom_slope_fps_per_rad inf"),
+    ],
+)
+def test_bad_zoom_bound_is_a_one_line_usage_error(kwargs, needle):
+    with pytest.raises(UsageError) as e:
+        brake_schedule(**kwargs)
+    assert needle in str(e.value) and "\n" not in str(e.value)

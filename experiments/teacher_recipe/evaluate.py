@@ -6,7 +6,8 @@ slower / faster than the SMC by more than 1 s, p95, control TV, and the 30 s dev
 
 For each run folder, each ``policy/policy_seed<i>.npz`` flies RL-only (``rl``) and in the default hybrid
 (``hybrid``, simplex schedule) on the 1000-run Monte Carlo of ``harv-jax mc`` (``--runs``, nominal aircraft
-and ``--randomize``), with the SMC and the braking SMCs (``smc-brake``, ``smc-brake-v0``) on the same runs
+and ``--randomize``), with the SMC and the braking SMCs (``smc-brake``, ``smc-brake-v0``, ``smc-brake-zoom``)
+on the same runs
 (common random numbers), and on the 30 s spin of ``harv-jax compare``. Writes JSON (every seed, IQM with a
 95% bootstrap CI over seeds, which seeds pass each criterion) and prints one table row per policy.
 """
@@ -112,15 +113,18 @@ def main() -> None:
     }
     base = {
         c: {k: mc_block(c, ControllerOptions(), v) for k, v in inputs.items()}
-        for c in ("smc", "smc-brake", "smc-brake-v0")
+        for c in ("smc", "smc-brake", "smc-brake-v0", "smc-brake-zoom")
     }
     smc = {k: score(base["smc"][k], base["smc"][k]) for k in inputs}
     brake = {k: score(base["smc-brake"][k], base["smc"][k]) for k in inputs}
     brake_v0 = {k: score(base["smc-brake-v0"][k], base["smc"][k]) for k in inputs}
+    brake_zoom = {k: score(base["smc-brake-zoom"][k], base["smc"][k]) for k in inputs}
     spin_smc, spin_brake = spin_time("smc", None), spin_time("smc-brake", None)
     spin_brake_v0 = spin_time("smc-brake-v0", None)
+    spin_brake_zoom = spin_time("smc-brake-zoom", None)
     print(f"smc {smc['nominal']} spin {spin_smc}\nsmc-brake {brake['nominal']} spin {spin_brake}", flush=True)
     print(f"smc-brake-v0 {brake_v0['nominal']} spin {spin_brake_v0}", flush=True)
+    print(f"smc-brake-zoom {brake_zoom['nominal']} spin {spin_brake_zoom}", flush=True)
     policies = []
     for run in a.runs:
         for path in sorted((run / "policy").glob("policy_seed*.npz"), key=lambda p: int(p.stem[11:])):
@@ -155,6 +159,8 @@ def main() -> None:
                         lambda p: p["rl"]["nominal"]["t_mean_nr_s"] / brake["nominal"]["t_mean_nr_s"]),
                        ("rl_mean_over_smc_brake_v0",
                         lambda p: p["rl"]["nominal"]["t_mean_nr_s"] / brake_v0["nominal"]["t_mean_nr_s"]),
+                       ("rl_mean_over_smc_brake_zoom",
+                        lambda p: p["rl"]["nominal"]["t_mean_nr_s"] / brake_zoom["nominal"]["t_mean_nr_s"]),
                        ("rl_slower_than_smc_by_1s", lambda p: p["rl"]["nominal"]["slower_than_smc_by_1s"]),
                        ("rl_tv_mean_rad", lambda p: p["rl"]["nominal"]["tv_mean_rad"]),
                        ("hybrid_mean_over_smc", lambda p: p["hybrid"]["mean_over_smc"])):  # fmt: skip
@@ -169,6 +175,8 @@ def main() -> None:
         "smc_brake": brake,
         "smc_brake_v0": brake_v0,
         "spin_smc_brake_v0_s": spin_brake_v0,
+        "smc_brake_zoom": brake_zoom,
+        "spin_smc_brake_zoom_s": spin_brake_zoom,
         "spin_smc_s": spin_smc,
         "spin_smc_brake_s": spin_brake,
         "policies": policies,

@@ -23,7 +23,7 @@ from harv_jax.cli_options import (
 )
 
 #: The controllers of the quickstart (names in harv_jax.control.registry).
-QUICKSTART_CONTROLLERS = ("smc", "smc-brake", "smc-brake-v0", "rl", "hybrid")
+QUICKSTART_CONTROLLERS = ("smc", "smc-brake", "smc-brake-zoom", "rl", "hybrid")
 DURATION_S = 60.0
 SPIN_S = 30.0
 CHUNK: int | None = None  # runs per compiled call: guards.auto_chunk

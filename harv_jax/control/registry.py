@@ -89,6 +89,18 @@ def _build_smc_brake_v0(opts: ControllerOptions) -> Controller:
     return make_smc_brake(SMCConfig(switching=opts.switching), schedule=schedule)
 
 
+def _build_smc_brake_zoom(opts: ControllerOptions) -> Controller:
+    from harv_jax.control import smc_brake as sb
+    from harv_jax.control.smc import SMCConfig
+
+    schedule = sb.brake_schedule(
+        v_switch_fps=sb.ZOOM_V_SWITCH_FPS,
+        v_zoom_fps=sb.V_ZOOM_FPS,
+        zoom_slope_fps_per_rad=sb.ZOOM_SLOPE_FPS_PER_RAD,
+    )
+    return sb.make_smc_brake(SMCConfig(switching=opts.switching), schedule=schedule)
+
+
 def _policy_act(policy: str | None) -> tuple[Callable, bool]:
     """The deterministic action of the policy at ``policy`` and whether it observes the engagement airspeed
     (12 observations); UsageError if its sizes do not fit."""
@@ -143,6 +155,11 @@ CONTROLLERS: dict[str, ControllerEntry] = {
         _build_smc_brake_v0,
         ("switching",),
         "smc-brake if the airspeed at engagement is below 1200 ft/s, else the SMC (control.smc_brake)",
+    ),
+    "smc-brake-zoom": ControllerEntry(
+        _build_smc_brake_zoom,
+        ("switching",),
+        "smc-brake while 600 < V < 1200 - 600 max(gamma, 0) ft/s: not in a zoom climb (control.smc_brake)",
     ),
 }
 
