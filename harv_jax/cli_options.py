@@ -84,9 +84,10 @@ def zeta_option():
 def controllers_help() -> str:
     """``--controller`` help (fixed text; the error for an unknown name lists the registered ones)."""
     return (
-        "Controllers, comma-separated: smc, smc-brake, smc-brake-v0, rl, hybrid or another name in "
-        "harv_jax.control.registry; NAME+lpHZ feeds NAME its measurements through a 2nd-order low-pass at HZ "
-        "(e.g. smc+lp2), NAME+obsHZ the estimate of a model-based observer of HZ bandwidth (e.g. smc+obs0.1)."
+        "Controllers, comma-separated: smc, smc-brake, smc-brake-v0, smc-brake-zoom, rl, hybrid or another "
+        "name in harv_jax.control.registry; NAME+lpHZ feeds NAME its measurements through a 2nd-order "
+        "low-pass at HZ (e.g. smc+lp2), NAME+obsHZ the estimate of a model-based observer of HZ bandwidth "
+        "(e.g. smc+obs0.1)."
     )
 
 
