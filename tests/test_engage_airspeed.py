@@ -20,8 +20,9 @@ from harv_jax.ppo.networks import make_ppo_networks
 from harv_jax.task.spaces import (
     ENGAGE_OBSERVATION_SIZE,
     OBSERVATION_SIZE,
+    ObservationLayout,
+    layout_of_size,
     observation,
-    observes_engage_airspeed,
 )
 
 N_STEPS = 6
@@ -74,7 +75,7 @@ def test_rl_controller_sees_what_the_env_sees():
         seen.append(np.asarray(obs))
         return jnp.zeros(3)
 
-    ctrl = make_rl_controller(act, engage_airspeed=True)
+    ctrl = make_rl_controller(act, layout=ObservationLayout(engage_airspeed=True))
     state = ctrl.init(get_aircraft("harv"))
     target = env_obs[0][8:11]
     for x in winds:
@@ -89,7 +90,7 @@ def test_hybrid_policy_sees_the_engagement_airspeed():
         seen.append(np.asarray(obs))
         return jnp.zeros(3)
 
-    ctrl = make_hybrid(act, HybridConfig(engage_airspeed=True))
+    ctrl = make_hybrid(act, HybridConfig(observation=ObservationLayout(engage_airspeed=True)))
     state = ctrl.init(get_aircraft("harv"))
     ref = jnp.array([0.349, 0.0, 0.0])
     x = jnp.array([900.0, 0.3, 0.05, 0.1, -0.2, 0.3, 0.4, -0.1, 0.0, 25000.0])
@@ -118,7 +119,7 @@ def test_a_policy_file_of_12_observations_flies_with_the_engagement_airspeed(tmp
         state = ctrl.init(params)
         u, state, _ = ctrl.apply(state, x, ref, jax.random.key(0))
         assert bool(jnp.all(jnp.isfinite(u)))
-        assert float(state.v_engage_fps) == 700.0 and bool(state.engaged)
+        assert float(state.obs_memory.v_engage_fps) == 700.0 and bool(state.obs_memory.engaged)
 
 
 def test_a_policy_of_another_size_is_refused_in_one_line(tmp_path):
@@ -127,5 +128,6 @@ def test_a_policy_of_another_size_is_refused_in_one_line(tmp_path):
         build_controller("rl", ControllerOptions(policy=str(path)))
     assert "13 observations" in str(e.value) and "\n" not in str(e.value)
     with pytest.raises(ValueError, match="13 observations"):
-        observes_engage_airspeed(13)
-    assert not observes_engage_airspeed(11) and observes_engage_airspeed(12)
+        layout_of_size(13)
+    assert layout_of_size(11) == ObservationLayout()
+    assert layout_of_size(12) == ObservationLayout(engage_airspeed=True)

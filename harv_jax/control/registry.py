@@ -26,6 +26,7 @@ from harv_jax.errors import UsageError
 
 if TYPE_CHECKING:  # the table stays importable without jax (the CLI checks its arguments first)
     from harv_jax.control.base import Controller
+    from harv_jax.task.spaces import ObservationLayout
 
 #: The hybrid's default zeta schedule: the policy alone until a monitor hands over to the SMC for good
 #: (``control.scheduling.simplex_step``; ``experiments/hybrid_simplex/README.md``).
@@ -101,37 +102,43 @@ def _build_smc_brake_zoom(opts: ControllerOptions) -> Controller:
     return sb.make_smc_brake(SMCConfig(switching=opts.switching), schedule=schedule)
 
 
-def _policy_act(policy: str | None) -> tuple[Callable, bool]:
-    """The deterministic action of the policy at ``policy`` and whether it observes the engagement airspeed
-    (12 observations); UsageError if its sizes do not fit."""
+def _policy_act(policy: str | None) -> tuple[Callable, ObservationLayout]:
+    """The deterministic action of the policy at ``policy`` and its observation layout (11, 12 or 14
+    observations); UsageError if its sizes do not fit."""
     from harv_jax.policy import resolve_policy
-    from harv_jax.task.spaces import ACTION_SIZE, ENGAGE_OBSERVATION_SIZE, OBSERVATION_SIZE
+    from harv_jax.task.spaces import (
+        ACTION_SIZE,
+        ENGAGE_OBSERVATION_SIZE,
+        INTEGRAL_OBSERVATION_SIZE,
+        LAYOUTS,
+        OBSERVATION_SIZE,
+    )
 
     pol = resolve_policy(policy)
     sizes = (pol.networks.observation_size, pol.networks.action_size)
-    if sizes[0] not in (OBSERVATION_SIZE, ENGAGE_OBSERVATION_SIZE) or sizes[1] != ACTION_SIZE:
+    if sizes[0] not in LAYOUTS or sizes[1] != ACTION_SIZE:
         raise UsageError(
             f"--policy {policy!r} maps {sizes[0]} observations to {sizes[1]} actions; this aircraft's "
             f"controller needs {OBSERVATION_SIZE} (or {ENGAGE_OBSERVATION_SIZE} with the engagement "
-            f"airspeed) -> {ACTION_SIZE}"
+            f"airspeed, {INTEGRAL_OBSERVATION_SIZE} with the tracking-error integral) -> {ACTION_SIZE}"
         )
-    return pol.deterministic, sizes[0] == ENGAGE_OBSERVATION_SIZE
+    return pol.deterministic, LAYOUTS[sizes[0]]
 
 
 def _build_rl(opts: ControllerOptions) -> Controller:
     from harv_jax.control.rl import make_rl_controller
 
-    act, engage = _policy_act(opts.policy)
-    return make_rl_controller(act, engage_airspeed=engage)
+    act, layout = _policy_act(opts.policy)
+    return make_rl_controller(act, layout=layout)
 
 
 def _build_hybrid(opts: ControllerOptions) -> Controller:
     from harv_jax.control.hybrid import ZETA_SCHEDULES, HybridConfig, make_hybrid
 
-    act, engage = _policy_act(opts.policy)
+    act, layout = _policy_act(opts.policy)
     if opts.zeta not in ZETA_SCHEDULES:
         raise UsageError(f"--zeta {opts.zeta!r} is unknown; allowed: {', '.join(ZETA_SCHEDULES)}")
-    return make_hybrid(act, HybridConfig(schedule=opts.zeta, engage_airspeed=engage))
+    return make_hybrid(act, HybridConfig(schedule=opts.zeta, observation=layout))
 
 
 #: The controllers, in help order.

@@ -33,6 +33,7 @@ from harv_jax.dynamics.disturbances import (
 from harv_jax.env.reward_params import RewardParams, paper_reward_params
 from harv_jax.task.criteria import Envelope, default_envelope
 from harv_jax.task.scenarios import RESET_HIGH, RESET_LOW
+from harv_jax.task.spaces import ObservationLayout
 from harv_jax.task.spec import (
     ALPHA_TARGET_BOUNDS_RAD,
     BETA_TARGET_RAD,
@@ -70,6 +71,9 @@ class EnvConfig:
         discount: default PBRS discount Gamma (= the PPO discount; paper 0.99).
         observe_engage_airspeed: the observation gains a 12th component, the airspeed of the episode's
             first observation, ft/s (``task.spaces.ENGAGE_OBS_NAMES``; default off: the paper's 11).
+        observe_tracking_integral: the observation gains three components, the integral of the tracking
+            error, rad s (``task.spaces.INTEGRAL_OBS_NAMES``; default off; not with
+            ``observe_engage_airspeed``).
     """
 
     dt_s: float = DT_S
@@ -82,6 +86,14 @@ class EnvConfig:
     discount: float = 0.99
     aircraft: str = DEFAULT_AIRCRAFT
     observe_engage_airspeed: bool = False
+    observe_tracking_integral: bool = False
+
+    @property
+    def observation_layout(self) -> ObservationLayout:
+        """The layout of the observation (11, 12 or 14 components)."""
+        return ObservationLayout(
+            engage_airspeed=self.observe_engage_airspeed, tracking_integral=self.observe_tracking_integral
+        )
 
     def __post_init__(self) -> None:
         if not self.dt_s > 0:
@@ -93,6 +105,7 @@ class EnvConfig:
         if not 0.0 < self.discount <= 1.0:
             raise ValueError(f"discount={self.discount!r} must be in (0, 1]")
         check_aircraft_name(self.aircraft)
+        _ = self.observation_layout  # ValueError for both extensions at once
 
 
 @struct.dataclass

@@ -66,12 +66,12 @@ from harv_jax.task.spaces import (
     ACTION_SIZE,
     NUM_MEASURED,
     OBSERVATION_SIZE,
+    ObservationMemory,
     action_to_command,
     clean_observation,
     command_to_action,
-    engage_observation_size,
     finish_observation,
-    with_engage_airspeed,
+    observation_memory_init,
 )
 
 _MU, _CHI = WIND_INDEX["mu"], WIND_INDEX["chi"]
@@ -106,8 +106,8 @@ class EnvState:
         step: int32 steps taken in this episode.
         potential: PBRS potential sigma of the current state.
         episode: this episode's randomized parameters.
-        v_engage_fps: airspeed of the episode's first observation, ft/s (observed with
-            ``EnvConfig.observe_engage_airspeed``).
+        obs_memory: what the observation keeps from the episode's earlier observations (the engagement
+            airspeed, the tracking-error integral: ``EnvConfig.observation_layout``).
     """
 
     aircraft: BodyState
@@ -119,7 +119,7 @@ class EnvState:
     step: jnp.ndarray
     potential: jnp.ndarray
     episode: EpisodeParams
-    v_engage_fps: jnp.ndarray
+    obs_memory: ObservationMemory
 
 
 class Env(NamedTuple):
@@ -134,7 +134,7 @@ class Env(NamedTuple):
         reset_to: (key, x_wind [10], target [3], params) -> (obs, EnvState): start at a given state.
         batch_step: (keys [N], states, actions [N, 3], params) -> vmap(step) outputs, with the resets
             computed only on steps where some env is done (faster for long episodes).
-        observation_size: 11 (12 with ``EnvConfig.observe_engage_airspeed``).
+        observation_size: 11 (12 or 14 with ``EnvConfig.observation_layout``).
         action_size: 3.
     """
 
@@ -218,8 +218,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
             obs = obs.at[:NUM_MEASURED].add(randomize.sensor_noise(noise8, ep))
         return finish_observation(obs)
 
-    def _with_engage(obs: jnp.ndarray, v_engage_fps: jnp.ndarray) -> jnp.ndarray:
-        return with_engage_airspeed(obs, v_engage_fps) if config.observe_engage_airspeed else obs
+    layout = config.observation_layout
 
     def _uniform(key: jax.Array, n: int, params: EnvParams) -> jnp.ndarray:
         dtype = params.reset.low.dtype
@@ -256,7 +255,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
             ep = randomize.nominal_episode(params.aircraft, params.randomization)
             gust = jnp.zeros((3,), dtype)
             noise8 = None
-        obs = _observe(noise8, x0, target, ep)
+        obs, memory = layout.extend(_observe(noise8, x0, target, ep), observation_memory_init(dtype), dt_s)
         state = EnvState(
             aircraft=from_wind(x0),
             wind=x0,
@@ -267,9 +266,9 @@ def make_env(config: EnvConfig | None = None) -> Env:
             step=jnp.zeros((), dtype=jnp.int32),
             potential=reward.state_potential(x0, target, params.reward),
             episode=ep,
-            v_engage_fps=obs[0],
+            obs_memory=memory,
         )
-        return _with_engage(obs, state.v_engage_fps), state
+        return obs, state
 
     def reset(key: jax.Array, params: EnvParams) -> tuple[jnp.ndarray, EnvState]:
         """Start an episode: (obs [11], EnvState)."""
@@ -309,7 +308,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
         terms, pot_next = reward.reward_terms(
             x, state.target_rad, a, state.potential, terminated, params.reward, a_prev
         )
-        obs = _with_engage(_observe(noise8, x, state.target_rad, ep), state.v_engage_fps)
+        obs, memory = layout.extend(_observe(noise8, x, state.target_rad, ep), state.obs_memory, dt_s)
         new_state = state.replace(
             aircraft=body,
             wind=x,
@@ -318,6 +317,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
             gust_fps=gust,
             step=t,
             potential=pot_next,
+            obs_memory=memory,
         )
         info = {
             "reward_terms": terms._asdict(),
@@ -382,5 +382,5 @@ def make_env(config: EnvConfig | None = None) -> Env:
         default_params=lambda: default_params(config),
         reset_to=reset_to,
         batch_step=batch_step,
-        observation_size=engage_observation_size(config.observe_engage_airspeed),
+        observation_size=layout.size,
     )

@@ -59,6 +59,7 @@ ENV_RANGES: dict[str, tuple[float, float] | None] = {
     "h_floor_ft": (-1e9, 65_000.0),
     "discount": (1e-6, 1.0),
     "observe_engage_airspeed": None,
+    "observe_tracking_integral": None,
 }
 
 #: Allowed range and length (None: scalar) of every reward field, as ``RewardParams`` declares them.

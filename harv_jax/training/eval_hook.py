@@ -19,7 +19,7 @@ from harv_jax.ppo import normalize as obs_norm
 from harv_jax.ppo.config import PPOConfig
 from harv_jax.ppo.networks import postprocess
 from harv_jax.ppo.train import Trainer, TrainingState
-from harv_jax.task.spaces import observes_engage_airspeed
+from harv_jax.task.spaces import layout_of_size
 from harv_jax.training import outputs
 from harv_jax.training.in_loop import split_loop
 
@@ -57,13 +57,13 @@ def make_eval_hook(
         mean, _ = trainer.networks.policy(params, obs_in)
         return postprocess(mean)
 
-    engage = observes_engage_airspeed(trainer.networks.observation_size)
+    layout = layout_of_size(trainer.networks.observation_size)
 
     def make_controller(act_obs):
-        return make_rl_controller(act_obs, engage_airspeed=engage)
+        return make_rl_controller(act_obs, layout=layout)
 
     if loop != "none":  # the policy flies in the loop it trains in
-        hybrid_cfg = HybridConfig(schedule=loop.removeprefix("hybrid:"), engage_airspeed=engage)
+        hybrid_cfg = HybridConfig(schedule=loop.removeprefix("hybrid:"), observation=layout)
 
         def make_controller(act_obs):
             return make_hybrid(act_obs, hybrid_cfg)

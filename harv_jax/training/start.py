@@ -23,7 +23,7 @@ from harv_jax.ppo.config import PPOConfig
 from harv_jax.ppo.networks import PPOParams
 from harv_jax.ppo.runner import check_init_policy
 from harv_jax.ppo.train import Trainer, make_train
-from harv_jax.task.spaces import ACTION_SIZE, engage_observation_size
+from harv_jax.task.spaces import ACTION_SIZE, ObservationLayout
 from harv_jax.training.demos import RunDemos, load_run_demos
 from harv_jax.training.environment import make_harv_env
 from harv_jax.training.outputs import save_spin_bank
@@ -87,7 +87,13 @@ def build_training(
             demonstrations (:func:`~harv_jax.training.demos.load_run_demos`).
     """
     pol = None if init_policy is None else resolve_policy(init_policy)  # a bad file fails before the env
-    obs_size = engage_observation_size(env_table.get("observe_engage_airspeed") is True)
+    try:
+        obs_size = ObservationLayout(
+            engage_airspeed=env_table.get("observe_engage_airspeed") is True,
+            tracking_integral=env_table.get("observe_tracking_integral") is True,
+        ).size
+    except ValueError as e:
+        raise UsageError(f"[env] {e}") from None
     if pol is not None:
         check_init_sizes(init_policy, pol, cfg, obs_size)
     if (cfg.bc_coef > 0 or cfg.bc_coef_end > 0) and env_table.get(TEACHER_KEY) is None and cfg.demos is None:
