@@ -19,7 +19,7 @@ from harv_jax.ppo.losses import PPOBatch, ppo_loss
 from harv_jax.ppo.networks import make_ppo_networks
 from harv_jax.ppo.train import make_train
 from harv_jax.task.spaces import command_to_action
-from harv_jax.training.environment import make_harv_env, teacher_name
+from harv_jax.training.environment import make_harv_env, teacher_model, teacher_name
 
 SMALL_ENV = {"episode_steps": 50, "domain_randomization": False}
 
@@ -92,6 +92,40 @@ def test_teacher_env_labels_each_step_with_the_teachers_normalized_command():
     pobs2, _, preward, _, _ = plain.step(key, pstate, action, params)
     np.testing.assert_array_equal(np.asarray(obs2), np.asarray(pobs2))
     assert float(reward) == float(preward)
+
+
+def _first_label(table: dict) -> tuple[np.ndarray, object]:
+    env, params = make_harv_env(table)
+    key = jax.random.key(4)
+    _, state = env.reset(key, params)
+    _, _, _, _, info = env.step(key, state, jnp.zeros(3, jnp.float32), params)
+    return np.asarray(info["teacher_action"]), (state, params)
+
+
+def test_a_nominal_teacher_labels_with_the_nominal_aircraft():
+    """On a randomized episode, ``teacher_model = "nominal"`` labels as the teacher built on the nominal
+    aircraft does; the default labels as the one built on the episode's aircraft, and the two differ."""
+    table = {"episode_steps": 50, "teacher": "smc"}
+    label_episode, (state, params) = _first_label(table)
+    label_nominal, _ = _first_label({**table, "teacher_model": "nominal"})
+    smc = build_controller("smc")
+    key = jax.random.key(4)
+    for model, label in ((params.aircraft, label_nominal), (state.env.episode.aircraft, label_episode)):
+        cs = smc.init(model).replace(u_prev_rad=state.env.delta_rad)
+        u, _, _ = smc.apply(cs, state.env.wind, state.env.target_rad, key)
+        ac = state.env.episode.aircraft
+        want = np.clip(np.asarray(command_to_action(u, ac.u_min_rad, ac.u_max_rad)), -1, 1)
+        np.testing.assert_allclose(label, want, rtol=1e-5, atol=1e-6)
+    assert np.any(np.abs(label_nominal - label_episode) > 1e-4)
+
+
+def test_teacher_model_is_checked():
+    assert teacher_model({"teacher": "smc"}) == "episode"
+    assert teacher_model({"teacher": "smc", "teacher_model": "nominal"}) == "nominal"
+    with pytest.raises(UsageError, match="teacher_model 'plant'; allowed: episode, nominal"):
+        teacher_model({"teacher": "smc", "teacher_model": "plant"})
+    with pytest.raises(UsageError, match="given without a teacher"):
+        teacher_model({"teacher_model": "nominal"})
 
 
 def test_teacher_name_is_checked():

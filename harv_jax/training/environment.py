@@ -7,7 +7,13 @@ from typing import Any
 from harv_jax.env import Env, EnvParams, make_env, settings
 from harv_jax.errors import UsageError
 from harv_jax.training.in_loop import InLoopEnv, make_in_loop_env, split_loop
-from harv_jax.training.teacher import TEACHER_KEY, TeacherEnv, make_teacher_env
+from harv_jax.training.teacher import (
+    TEACHER_KEY,
+    TEACHER_MODEL_KEY,
+    TEACHER_MODELS,
+    TeacherEnv,
+    make_teacher_env,
+)
 
 
 def make_harv_env(
@@ -22,6 +28,7 @@ def make_harv_env(
     (``spin.reset_prob`` > 0) the spin bank is ``spin_bank`` or, if None, made here from the ``[spin]`` table.
     """
     teacher = teacher_name(env_table)
+    model = teacher_model(env_table)
     loop, env_table = split_loop(env_table)
     settings.check_env_settings(env_table)  # every table, before the spin bank is made
     flat, nested = settings.split_tables(env_table)
@@ -34,8 +41,19 @@ def make_harv_env(
     if teacher is not None:
         from harv_jax.control.registry import build_controller
 
-        env = make_teacher_env(env, build_controller(teacher), teacher)
+        env = make_teacher_env(env, build_controller(teacher), teacher, model)
     return env, settings.env_params(env_config, nested, spin_bank)
+
+
+def teacher_model(env_table: dict[str, Any]) -> str:
+    """The teacher's model aircraft of a run's env settings (``[env] teacher_model``, default ``"episode"``);
+    UsageError naming a value that is not allowed, or a model without a teacher."""
+    model = env_table.get(TEACHER_MODEL_KEY, "episode")
+    if model not in TEACHER_MODELS:
+        raise UsageError(f"[env] teacher_model {model!r}; allowed: {', '.join(TEACHER_MODELS)}")
+    if TEACHER_MODEL_KEY in env_table and env_table.get(TEACHER_KEY) is None:
+        raise UsageError(f"[env] teacher_model {model!r} given without a teacher; set [env] teacher too")
+    return model
 
 
 def teacher_name(env_table: dict[str, Any]) -> str | None:

@@ -52,7 +52,7 @@ def parse_loop(text: str) -> str:
 
 
 #: Keys of a run's env settings that choose a wrapper of the env, not a setting of it.
-WRAPPER_KEYS = (LOOP_KEY, "teacher")
+WRAPPER_KEYS = (LOOP_KEY, "teacher", "teacher_model")
 
 
 def split_loop(env_table: dict[str, Any]) -> tuple[str, dict[str, Any]]:
@@ -114,28 +114,33 @@ class InLoopEnv(NamedTuple):
     action_size: int
 
 
-def controller_at_reset(controller: Any, es: EnvState) -> Any:
-    """A controller's state at an episode's start: built on the episode's aircraft, its memory of the last
-    command (if it keeps one) at the episode's initial deflections (e.g. a spin reset's pro-spin controls)."""
-    ctrl = controller.init(es.episode.aircraft)
+def controller_at_reset(controller: Any, es: EnvState, model: Any = None) -> Any:
+    """A controller's state at an episode's start: built on ``model`` (an ``AircraftParams``; None: the
+    episode's aircraft), its memory of the last command (if it keeps one) at the episode's initial
+    deflections (e.g. a spin reset's pro-spin controls)."""
+    ctrl = controller.init(es.episode.aircraft if model is None else model)
     if hasattr(ctrl, "u_prev_rad"):
         ctrl = ctrl.replace(u_prev_rad=es.delta_rad.astype(ctrl.u_prev_rad.dtype))
     return ctrl
 
 
-def wrapped_env_functions(env: Env, controller: Any, step_no_reset: Any) -> tuple[Any, Any, Any, Any]:
+def wrapped_env_functions(
+    env: Env, controller: Any, step_no_reset: Any, nominal_model: bool = False
+) -> tuple[Any, Any, Any, Any]:
     """(reset, reset_to, step, batch_step) of an env whose states are ``InLoopState`` (``env``'s state plus
-    ``controller``'s, started by :func:`controller_at_reset`), given its ``step_no_reset``; ``step``
-    auto-resets as the plain env's does."""
+    ``controller``'s, started by :func:`controller_at_reset` on the episode's aircraft, or with
+    ``nominal_model`` on the env parameters' nominal one), given its ``step_no_reset``; ``step`` auto-resets
+    as the plain env's does."""
 
-    def _wrap(obs: jnp.ndarray, es: EnvState) -> tuple[jnp.ndarray, InLoopState]:
-        return obs, InLoopState(env=es, ctrl=controller_at_reset(controller, es))
+    def _wrap(obs: jnp.ndarray, es: EnvState, params: Any) -> tuple[jnp.ndarray, InLoopState]:
+        model = params.aircraft if nominal_model else None
+        return obs, InLoopState(env=es, ctrl=controller_at_reset(controller, es, model))
 
     def reset(key: jax.Array, params: Any) -> tuple[jnp.ndarray, InLoopState]:
-        return _wrap(*env.reset(key, params))
+        return _wrap(*env.reset(key, params), params)
 
     def reset_to(key: jax.Array, x_wind: jnp.ndarray, target_rad: jnp.ndarray, params: Any):
-        return _wrap(*env.reset_to(key, x_wind, target_rad, params))
+        return _wrap(*env.reset_to(key, x_wind, target_rad, params), params)
 
     step = with_auto_reset(step_no_reset, reset)
 

@@ -6,9 +6,12 @@ e.g. the braking SMC ``smc-brake``) commands at the state the policy acts in. Th
 flies; the teacher only labels, on the states the learner visits (DAgger, Ross et al. 2011). The trainer
 turns the labels into a behaviour-cloning term of the PPO loss (``PPOConfig.bc_coef``, DAPG, Rajeswaran et
 al. 2017). The teacher's own state (e.g. the SMC's integral and its memory of the last command) runs on the
-flown trajectory and starts at the episode's initial deflections; its model aircraft is the episode's.
+flown trajectory and starts at the episode's initial deflections; its model aircraft is the episode's
+(``[env] teacher_model = "episode"``, the default: a teacher that knows the randomized aircraft the policy
+does not observe) or the nominal one (``"nominal"``: its labels are a function of the flown states alone, as
+a model-based controller built on the nominal aircraft flies in ``harv-jax mc --randomize``).
 
-In a preset: ``[env] teacher = "smc-brake"``.
+In a preset: ``[env] teacher = "smc-brake"``, optionally ``teacher_model = "nominal"``.
 """
 
 from __future__ import annotations
@@ -25,6 +28,10 @@ from harv_jax.training.in_loop import InLoopState, wrapped_env_functions
 
 #: Key of the teacher's controller name in a run's env settings (absent: no teacher).
 TEACHER_KEY = "teacher"
+#: Key of the teacher's model aircraft in a run's env settings (absent: ``"episode"``).
+TEACHER_MODEL_KEY = "teacher_model"
+#: Allowed teacher models: the episode's (randomized) aircraft, or the nominal one.
+TEACHER_MODELS = ("episode", "nominal")
 
 
 class TeacherEnv(NamedTuple):
@@ -42,13 +49,14 @@ class TeacherEnv(NamedTuple):
     action_size: int
 
 
-def make_teacher_env(env: Env, teacher: Controller, name: str) -> TeacherEnv:
+def make_teacher_env(env: Env, teacher: Controller, name: str, model: str = "episode") -> TeacherEnv:
     """Wrap ``env`` so that every step's info carries ``teacher``'s normalized action (``teacher_action``).
 
     Args:
         env: the plain recovery env.
         teacher: the teacher controller (``Controller(init, apply)``).
         name: its registry name (recorded as ``TeacherEnv.teacher``).
+        model: the teacher's model aircraft, ``"episode"`` (the randomized one) or ``"nominal"``.
     """
 
     def step_no_reset(key: jax.Array, state: InLoopState, action: jnp.ndarray, params: Any):
@@ -61,7 +69,9 @@ def make_teacher_env(env: Env, teacher: Controller, name: str) -> TeacherEnv:
         info["teacher_action"] = a_teacher.astype(jnp.float32)
         return obs, InLoopState(env=es_new, ctrl=ctrl), reward, terminated, truncated, info
 
-    reset, reset_to, step, batch_step = wrapped_env_functions(env, teacher, step_no_reset)
+    if model not in TEACHER_MODELS:
+        raise ValueError(f"teacher model {model!r}; allowed: {', '.join(TEACHER_MODELS)}")
+    reset, reset_to, step, batch_step = wrapped_env_functions(env, teacher, step_no_reset, model == "nominal")
     return TeacherEnv(
         config=env.config,
         reset=reset,
