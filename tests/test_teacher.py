@@ -196,6 +196,7 @@ def test_report_section_lists_every_seed_and_the_iqm():
         ('"nope"', "[env] teacher 'nope' is not a controller that can teach; allowed: smc"),
         ('"rl"', "[env] teacher 'rl' is not a controller that can teach"),
         ("3", "[env] teacher 3 is not a controller that can teach"),
+        ('"smc"\nteacher_model = "plant"', "[env] teacher_model 'plant'; allowed: episode, nominal"),
         (None, "bc_coef 1 / bc_coef_end 0 clone a teacher, and this run has none"),
     ],
 )
