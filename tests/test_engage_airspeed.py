@@ -28,18 +28,38 @@ from harv_jax.task.spaces import (
 N_STEPS = 6
 
 
-def _fly_env(config: EnvConfig, actions: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """Observations and wind states of one episode flown with ``actions`` (same keys for every config)."""
+def _fly_env(
+    config: EnvConfig, actions: np.ndarray, reset_key: int = 3, step_key: int = 100
+) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Observations and wind states of one episode flown with ``actions`` (same keys for every config:
+    ``reset_key`` for the reset, ``step_key + i`` for step i)."""
     env = make_env(config)
     params = env.default_params()
     step = jax.jit(env.step_no_reset)
-    obs, state = jax.jit(env.reset)(jax.random.key(3), params)
+    obs, state = jax.jit(env.reset)(jax.random.key(reset_key), params)
     seen, winds = [np.asarray(obs)], [np.asarray(state.wind)]
     for i, a in enumerate(actions):
-        obs, state, *_ = step(jax.random.key(100 + i), state, jnp.asarray(a), params)
+        obs, state, *_ = step(jax.random.key(step_key + i), state, jnp.asarray(a), params)
         seen.append(np.asarray(obs))
         winds.append(np.asarray(state.wind))
     return seen, winds
+
+
+def _rl_controller_observations(
+    layout: ObservationLayout, winds: list[np.ndarray], target: np.ndarray
+) -> np.ndarray:
+    """The observations the RL-only controller of ``layout`` hands its policy, flown on ``winds`` in order."""
+    seen = []
+
+    def act(obs):
+        seen.append(np.asarray(obs))
+        return jnp.zeros(3)
+
+    ctrl = make_rl_controller(act, layout=layout)
+    state = ctrl.init(get_aircraft("harv"))
+    for x in winds:
+        _, state, _ = ctrl.apply(state, jnp.asarray(x), jnp.asarray(target), jax.random.key(0))
+    return np.stack(seen)
 
 
 @pytest.fixture(scope="module")
@@ -69,18 +89,8 @@ def test_rl_controller_sees_what_the_env_sees():
     config = EnvConfig(episode_steps=100, domain_randomization=False, observe_engage_airspeed=True)
     actions = np.random.default_rng(1).uniform(-1.0, 1.0, (N_STEPS, 3)).astype(np.float32)
     env_obs, winds = _fly_env(config, actions)
-    seen = []
-
-    def act(obs):
-        seen.append(np.asarray(obs))
-        return jnp.zeros(3)
-
-    ctrl = make_rl_controller(act, layout=ObservationLayout(engage_airspeed=True))
-    state = ctrl.init(get_aircraft("harv"))
-    target = env_obs[0][8:11]
-    for x in winds:
-        _, state, _ = ctrl.apply(state, jnp.asarray(x), jnp.asarray(target), jax.random.key(0))
-    np.testing.assert_allclose(np.stack(seen), np.stack(env_obs), rtol=0, atol=1e-6)
+    seen = _rl_controller_observations(ObservationLayout(engage_airspeed=True), winds, env_obs[0][8:11])
+    np.testing.assert_allclose(seen, np.stack(env_obs), rtol=0, atol=1e-6)
 
 
 def test_hybrid_policy_sees_the_engagement_airspeed():

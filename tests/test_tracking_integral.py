@@ -9,11 +9,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from test_engage_airspeed import _fly_env, _rl_controller_observations
 
 from harv_jax.aircraft import get_aircraft
 from harv_jax.control.hybrid import HybridConfig, make_hybrid
 from harv_jax.control.registry import ControllerOptions, build_controller
-from harv_jax.control.rl import make_rl_controller
 from harv_jax.env import make_env
 from harv_jax.env.config import EnvConfig
 from harv_jax.policy import export_npz, make_policy
@@ -53,19 +53,6 @@ def test_integral_step_by_hand():
     np.testing.assert_allclose(got, [0.5, -0.5, 0.0])
 
 
-def _fly_env(config: EnvConfig, actions: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    env = make_env(config)
-    params = env.default_params()
-    step = jax.jit(env.step_no_reset)
-    obs, state = jax.jit(env.reset)(jax.random.key(5), params)
-    seen, winds = [np.asarray(obs)], [np.asarray(state.wind)]
-    for i, a in enumerate(actions):
-        obs, state, *_ = step(jax.random.key(200 + i), state, jnp.asarray(a), params)
-        seen.append(np.asarray(obs))
-        winds.append(np.asarray(state.wind))
-    return seen, winds
-
-
 def _integrals(obs11: list[np.ndarray], dt_s: float) -> np.ndarray:
     """The integral after each observation, recomputed from the observations in float64."""
     out, acc = [], np.zeros(3)
@@ -84,8 +71,8 @@ def test_env_appends_the_integral_of_its_observed_error():
     the observed tracking error; a state near the reference makes it move."""
     actions = np.zeros((N_STEPS, 3), np.float32)
     on = EnvConfig(episode_steps=100, observe_tracking_integral=True)
-    obs_on, _ = _fly_env(on, actions)
-    obs_off, _ = _fly_env(EnvConfig(episode_steps=100), actions)
+    obs_on, _ = _fly_env(on, actions, 5, 200)
+    obs_off, _ = _fly_env(EnvConfig(episode_steps=100), actions, 5, 200)
     assert make_env(on).observation_size == INTEGRAL_OBSERVATION_SIZE
     assert {o.shape for o in obs_on} == {(INTEGRAL_OBSERVATION_SIZE,)}
     for o_on, o_off in zip(obs_on, obs_off, strict=True):
@@ -111,20 +98,10 @@ def test_rl_controller_sees_what_the_env_sees():
     """Flown on the env's noise-free states, the controller's 14 observations are the env's, step by step."""
     config = EnvConfig(episode_steps=100, domain_randomization=False, observe_tracking_integral=True)
     actions = np.random.default_rng(2).uniform(-0.2, 0.2, (N_STEPS, 3)).astype(np.float32)
-    env_obs, winds = _fly_env(config, actions)
+    env_obs, winds = _fly_env(config, actions, 5, 200)
     assert np.any(np.stack(env_obs)[:, OBSERVATION_SIZE:] != 0.0)
-    seen = []
-
-    def act(obs):
-        seen.append(np.asarray(obs))
-        return jnp.zeros(3)
-
-    ctrl = make_rl_controller(act, layout=INTEGRAL)
-    state = ctrl.init(get_aircraft("harv"))
-    target = env_obs[0][8:11]
-    for x in winds:
-        _, state, _ = ctrl.apply(state, jnp.asarray(x), jnp.asarray(target), jax.random.key(0))
-    np.testing.assert_allclose(np.stack(seen), np.stack(env_obs), rtol=0, atol=1e-6)
+    seen = _rl_controller_observations(INTEGRAL, winds, env_obs[0][8:11])
+    np.testing.assert_allclose(seen, np.stack(env_obs), rtol=0, atol=1e-6)
 
 
 def test_hybrid_policy_sees_the_integral():
