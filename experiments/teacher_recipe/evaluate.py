@@ -39,6 +39,8 @@ DURATION_S = 60.0
 KNOWN_AIRCRAFT = DisturbanceSpec(model_error=1.0, controller_knows_aircraft=True)
 N_STEPS = 6000
 REF = jnp.asarray([ALPHA_TARGET_RAD, 0.0, 0.0])
+#: The model-based controllers every policy is compared with, the SMC first.
+BASELINES = ("smc", "smc-brake", "smc-brake-v0", "smc-brake-zoom")
 
 
 def cpu_model() -> str:
@@ -46,6 +48,11 @@ def cpu_model() -> str:
         if line.startswith("model name"):
             return line.split(":", 1)[1].strip()
     return platform.processor() or "unknown"
+
+
+def _key(name: str) -> str:
+    """A controller name as a JSON key (``smc-brake-v0`` -> ``smc_brake_v0``)."""
+    return name.replace("-", "_")
 
 
 def mc_block(name: str, options: ControllerOptions, inputs: Any) -> dict[str, Any]:
@@ -111,20 +118,12 @@ def main() -> None:
         # Carlo's --randomize builds them on the nominal one, --controller-knows-aircraft on the run's)
         "randomized": sample_mc_inputs(key, a.n, nominal, disturbances=KNOWN_AIRCRAFT),
     }
-    base = {
-        c: {k: mc_block(c, ControllerOptions(), v) for k, v in inputs.items()}
-        for c in ("smc", "smc-brake", "smc-brake-v0", "smc-brake-zoom")
-    }
-    smc = {k: score(base["smc"][k], base["smc"][k]) for k in inputs}
-    brake = {k: score(base["smc-brake"][k], base["smc"][k]) for k in inputs}
-    brake_v0 = {k: score(base["smc-brake-v0"][k], base["smc"][k]) for k in inputs}
-    brake_zoom = {k: score(base["smc-brake-zoom"][k], base["smc"][k]) for k in inputs}
-    spin_smc, spin_brake = spin_time("smc", None), spin_time("smc-brake", None)
-    spin_brake_v0 = spin_time("smc-brake-v0", None)
-    spin_brake_zoom = spin_time("smc-brake-zoom", None)
-    print(f"smc {smc['nominal']} spin {spin_smc}\nsmc-brake {brake['nominal']} spin {spin_brake}", flush=True)
-    print(f"smc-brake-v0 {brake_v0['nominal']} spin {spin_brake_v0}", flush=True)
-    print(f"smc-brake-zoom {brake_zoom['nominal']} spin {spin_brake_zoom}", flush=True)
+    base = {c: {k: mc_block(c, ControllerOptions(), v) for k, v in inputs.items()} for c in BASELINES}
+    scores = {c: {k: score(base[c][k], base["smc"][k]) for k in inputs} for c in BASELINES}
+    spins = {c: spin_time(c, None) for c in BASELINES}
+    for c in BASELINES:
+        print(f"{c} {scores[c]['nominal']} spin {spins[c]}", flush=True)
+    smc, spin_smc = scores["smc"], spins["smc"]
     policies = []
     for run in a.runs:
         for path in sorted((run / "policy").glob("policy_seed*.npz"), key=lambda p: int(p.stem[11:])):
@@ -151,19 +150,19 @@ def main() -> None:
             line += f" rand {rl['randomized']['recovered']:.3f} | hybrid {hyb['recovered']:.3f}"
             line += f" {hyb['mean_over_smc']:.3f} | spin {spin_rl} / {spin_hyb}"
             print(line + f" | pass {sum(row['criteria'].values())}/{len(row['criteria'])}", flush=True)
+    getters = {
+        "rl_recovered": lambda p: p["rl"]["nominal"]["recovered"],
+        "rl_recovered_randomized": lambda p: p["rl"]["randomized"]["recovered"],
+        "rl_mean_over_smc": lambda p: p["rl"]["nominal"]["mean_over_smc"],
+    }
+    for c in BASELINES[1:]:
+        t_brake_s = scores[c]["nominal"]["t_mean_nr_s"]
+        getters[f"rl_mean_over_{_key(c)}"] = lambda p, t=t_brake_s: p["rl"]["nominal"]["t_mean_nr_s"] / t
+    getters["rl_slower_than_smc_by_1s"] = lambda p: p["rl"]["nominal"]["slower_than_smc_by_1s"]
+    getters["rl_tv_mean_rad"] = lambda p: p["rl"]["nominal"]["tv_mean_rad"]
+    getters["hybrid_mean_over_smc"] = lambda p: p["hybrid"]["mean_over_smc"]
     over = {}
-    for label, get in (("rl_recovered", lambda p: p["rl"]["nominal"]["recovered"]),
-                       ("rl_recovered_randomized", lambda p: p["rl"]["randomized"]["recovered"]),
-                       ("rl_mean_over_smc", lambda p: p["rl"]["nominal"]["mean_over_smc"]),
-                       ("rl_mean_over_smc_brake",
-                        lambda p: p["rl"]["nominal"]["t_mean_nr_s"] / brake["nominal"]["t_mean_nr_s"]),
-                       ("rl_mean_over_smc_brake_v0",
-                        lambda p: p["rl"]["nominal"]["t_mean_nr_s"] / brake_v0["nominal"]["t_mean_nr_s"]),
-                       ("rl_mean_over_smc_brake_zoom",
-                        lambda p: p["rl"]["nominal"]["t_mean_nr_s"] / brake_zoom["nominal"]["t_mean_nr_s"]),
-                       ("rl_slower_than_smc_by_1s", lambda p: p["rl"]["nominal"]["slower_than_smc_by_1s"]),
-                       ("rl_tv_mean_rad", lambda p: p["rl"]["nominal"]["tv_mean_rad"]),
-                       ("hybrid_mean_over_smc", lambda p: p["hybrid"]["mean_over_smc"])):  # fmt: skip
+    for label, get in getters.items():
         over[label] = {"per_seed": [get(p) for p in policies], **iqm_ci([get(p) for p in policies])}
     result = {
         "command": " ".join(["python", *os.sys.argv]),
@@ -172,13 +171,9 @@ def main() -> None:
         "runs": a.n,
         "duration_s": DURATION_S,
         "smc": smc,
-        "smc_brake": brake,
-        "smc_brake_v0": brake_v0,
-        "spin_smc_brake_v0_s": spin_brake_v0,
-        "smc_brake_zoom": brake_zoom,
-        "spin_smc_brake_zoom_s": spin_brake_zoom,
         "spin_smc_s": spin_smc,
-        "spin_smc_brake_s": spin_brake,
+        **{_key(c): scores[c] for c in BASELINES[1:]},
+        **{f"spin_{_key(c)}_s": spins[c] for c in BASELINES[1:]},
         "policies": policies,
         "over_seeds": over,
         "seeds_passing_all": sum(p["all_criteria"] for p in policies),

@@ -106,21 +106,14 @@ def _policy_act(policy: str | None) -> tuple[Callable, ObservationLayout]:
     """The deterministic action of the policy at ``policy`` and its observation layout (11, 12 or 14
     observations); UsageError if its sizes do not fit."""
     from harv_jax.policy import resolve_policy
-    from harv_jax.task.spaces import (
-        ACTION_SIZE,
-        ENGAGE_OBSERVATION_SIZE,
-        INTEGRAL_OBSERVATION_SIZE,
-        LAYOUTS,
-        OBSERVATION_SIZE,
-    )
+    from harv_jax.task.spaces import ACTION_SIZE, ALLOWED_OBSERVATION_SIZES, LAYOUTS
 
     pol = resolve_policy(policy)
     sizes = (pol.networks.observation_size, pol.networks.action_size)
     if sizes[0] not in LAYOUTS or sizes[1] != ACTION_SIZE:
         raise UsageError(
             f"--policy {policy!r} maps {sizes[0]} observations to {sizes[1]} actions; this aircraft's "
-            f"controller needs {OBSERVATION_SIZE} (or {ENGAGE_OBSERVATION_SIZE} with the engagement "
-            f"airspeed, {INTEGRAL_OBSERVATION_SIZE} with the tracking-error integral) -> {ACTION_SIZE}"
+            f"controller needs {ALLOWED_OBSERVATION_SIZES} -> {ACTION_SIZE}"
         )
     return pol.deterministic, LAYOUTS[sizes[0]]
 

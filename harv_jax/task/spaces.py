@@ -214,12 +214,18 @@ LAYOUTS: dict[int, ObservationLayout] = {
 }
 
 
+#: The observation sizes a policy may have, in words (for one-line errors).
+ALLOWED_OBSERVATION_SIZES = (
+    f"{OBSERVATION_SIZE} (the paper's observations), {ENGAGE_OBSERVATION_SIZE} (and the engagement airspeed) "
+    f"or {INTEGRAL_OBSERVATION_SIZE} (and the tracking-error integral)"
+)
+
+
 def layout_of_size(observation_size: int) -> ObservationLayout:
     """The layout a policy of ``observation_size`` inputs expects; ValueError for a size no layout has."""
     if observation_size not in LAYOUTS:
         raise ValueError(
             f"a policy with {observation_size} observations does not fit this task; allowed: "
-            f"{OBSERVATION_SIZE} ({', '.join(OBS_NAMES)}), {ENGAGE_OBSERVATION_SIZE} (and V_engage) or "
-            f"{INTEGRAL_OBSERVATION_SIZE} (and the tracking-error integral)"
+            f"{ALLOWED_OBSERVATION_SIZES}"
         )
     return LAYOUTS[observation_size]
