@@ -44,12 +44,10 @@ def main() -> None:
     a = ap.parse_args()
     inputs = sample_mc_inputs(jax.random.key(a.mc_seed), a.n, harv())
     v0 = np.asarray(inputs.x0_wind)[:, 0]
-    zoom = {"v_switch_fps": sb.ZOOM_V_SWITCH_FPS, "v_zoom_fps": sb.V_ZOOM_FPS,
-            "zoom_slope_fps_per_rad": sb.ZOOM_SLOPE_FPS_PER_RAD}  # fmt: skip
     no_integral = default_gains().replace(lambda2_ps2=jnp.zeros(3))
     controllers = {name: build_controller(name) for name in ("smc", "smc-brake", "smc-brake-zoom")}
     controllers["smc-brake-zoom, no integral"] = sb.make_smc_brake(
-        gains=no_integral, schedule=sb.brake_schedule(**zoom)
+        gains=no_integral, schedule=sb.zoom_schedule()
     )
     for p in a.policy:
         controllers[f"rl {p}"] = build_controller("rl", ControllerOptions(policy=p))

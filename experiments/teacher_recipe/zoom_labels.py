@@ -27,7 +27,7 @@ from harv_jax.control import smc_brake as sb
 from harv_jax.control.registry import ControllerOptions, build_controller
 from harv_jax.evaluation.closed_loop import closed_loop
 from harv_jax.evaluation.monte_carlo import sample_mc_inputs
-from harv_jax.task.spec import ALPHA_TARGET_RAD
+from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 REF = jnp.asarray([ALPHA_TARGET_RAD, 0.0, 0.0])
 N_STEPS, RECORD_EVERY = 3000, 10  # 30 s, a sample every 0.1 s
@@ -37,11 +37,7 @@ V_ZOOM_ENGAGE_FPS = 1200.0
 def braking_share(name: str, options: ControllerOptions, inputs, runs: np.ndarray) -> dict[str, float]:
     """Fly ``name`` on the selected runs; the teacher's braking flag along the trajectories."""
     ctrl = build_controller(name, options)
-    schedule = sb.brake_schedule(
-        v_switch_fps=sb.ZOOM_V_SWITCH_FPS,
-        v_zoom_fps=sb.V_ZOOM_FPS,
-        zoom_slope_fps_per_rad=sb.ZOOM_SLOPE_FPS_PER_RAD,
-    )
+    schedule = sb.zoom_schedule()
     take = lambda a: a[runs]  # noqa: E731
     params = jax.tree.map(take, inputs.params)
 
@@ -77,7 +73,7 @@ def main() -> None:
         "command": " ".join(["python", *os.sys.argv]),
         "mc_seed": a.mc_seed,
         "runs_engaged_at_or_above_1200_fps": int(runs.size),
-        "seconds_flown": N_STEPS * 0.01,
+        "seconds_flown": N_STEPS * DT_S,
         "rows": rows,
     }
     a.out.parent.mkdir(parents=True, exist_ok=True)

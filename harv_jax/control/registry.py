@@ -94,12 +94,7 @@ def _build_smc_brake_zoom(opts: ControllerOptions) -> Controller:
     from harv_jax.control import smc_brake as sb
     from harv_jax.control.smc import SMCConfig
 
-    schedule = sb.brake_schedule(
-        v_switch_fps=sb.ZOOM_V_SWITCH_FPS,
-        v_zoom_fps=sb.V_ZOOM_FPS,
-        zoom_slope_fps_per_rad=sb.ZOOM_SLOPE_FPS_PER_RAD,
-    )
-    return sb.make_smc_brake(SMCConfig(switching=opts.switching), schedule=schedule)
+    return sb.make_smc_brake(SMCConfig(switching=opts.switching), schedule=sb.zoom_schedule())
 
 
 def _policy_act(policy: str | None) -> tuple[Callable, ObservationLayout]:

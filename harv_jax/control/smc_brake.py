@@ -151,6 +151,17 @@ class SMCBrakeState(SMCState):
     brake_enabled: jnp.ndarray
 
 
+def zoom_schedule(dtype=None) -> BrakeSchedule:
+    """``smc-brake-zoom``'s schedule: brake while ZOOM_V_SWITCH_FPS < V < V_ZOOM_FPS - ZOOM_SLOPE_FPS_PER_RAD
+    max(gamma, 0)."""
+    return brake_schedule(
+        v_switch_fps=ZOOM_V_SWITCH_FPS,
+        dtype=dtype,
+        v_zoom_fps=V_ZOOM_FPS,
+        zoom_slope_fps_per_rad=ZOOM_SLOPE_FPS_PER_RAD,
+    )
+
+
 def braking_reference(
     x_wind: jnp.ndarray,
     reference_rad: jnp.ndarray,
