@@ -44,6 +44,13 @@ BAD_PRESETS: dict[str, tuple[str | bytes | None, str]] = {
     "env_not_table": ("env = [1, 2]\n", "env = [1, 2] must be a table"),
     "reward_not_table": ("reward = 1.0\n", "reward = 1.0 must be a table"),
     "description": ("description = 5\n", "description = 5 must be a string"),
+    # a base file
+    "base_missing": ('base = "nope.toml"\n', "base = 'nope.toml' is not a file"),
+    "base_path": ('base = "../ppo_nan.toml"\n', "the name of a .toml file in the same folder"),
+    "base_not_string": ("base = 5\n", "base = 5; allowed"),
+    "base_loop_a": ('base = "base_loop_b.toml"\n', "none twice"),
+    "base_loop_b": ('base = "base_loop_a.toml"\n', "none twice"),
+    "base_bad_value": ('base = "ppo_nan.toml"\n', "--lr nan"),
     # [ppo]
     "ppo_unknown": ("[ppo]\nlrr = 1e-3\n", "unknown PPO setting 'lrr'"),
     "ppo_string": ('[ppo]\ntotal_steps = "lots"\n', "--steps 'lots'"),

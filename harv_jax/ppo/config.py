@@ -220,8 +220,57 @@ def to_dict(cfg: PPOConfig) -> dict[str, Any]:
     return d
 
 
+#: How many ``base`` files a preset may chain (a preset naming a base that names a base ...).
+MAX_BASE_DEPTH = 8
+
+
+def _read_toml(path: Path | Traversable) -> dict[str, Any]:
+    """The TOML document of ``path``; UsageError naming the file for unreadable or bad TOML."""
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise UsageError(f"preset {str(path)!r} is not UTF-8 text; expected a TOML file") from None
+    except OSError as e:
+        raise UsageError(f"preset {str(path)!r} cannot be read ({e.strerror or type(e).__name__})") from None
+    except tomllib.TOMLDecodeError as e:
+        raise UsageError(f"preset {str(path)!r} is not valid TOML: {e}") from None
+
+
+def _resolve_base(path: Path | Traversable, data: dict[str, Any], chain: tuple[str, ...]) -> dict[str, Any]:
+    """``data`` on top of its ``base`` file (a file name in the same folder), tables merged key by key."""
+    if "base" not in data:
+        return data
+    base = data["base"]
+    if not (isinstance(base, str) and base.endswith(".toml") and Path(base).name == base):
+        raise UsageError(
+            f"preset {str(path)!r}: base = {base!r}; allowed: the name of a .toml file in the same folder"
+        )
+    base_path = Path(str(path)).parent / base
+    if str(base_path) in chain or len(chain) >= MAX_BASE_DEPTH:
+        raise UsageError(
+            f"preset {str(path)!r}: base = {base!r} makes a chain of {len(chain) + 1} files "
+            f"({' -> '.join(Path(c).name for c in (*chain, str(base_path)))}); allowed: at most "
+            f"{MAX_BASE_DEPTH} files, none twice"
+        )
+    if not base_path.is_file():
+        raise UsageError(f"preset {str(path)!r}: base = {base!r} is not a file in {str(base_path.parent)!r}")
+    merged = dict(_resolve_base(base_path, _read_toml(base_path), (*chain, str(base_path))))
+    for key, value in data.items():
+        if key == "base":
+            continue
+        if isinstance(value, dict) and isinstance(merged.get(key), dict):
+            merged[key] = {**merged[key], **value}
+        else:
+            merged[key] = value
+    return merged
+
+
 def load_file(path: Path | Traversable, tables: tuple[str, ...] = ()) -> tuple[PPOConfig, dict[str, Any]]:
     """Read a TOML config file: its ``[ppo]`` table as a validated config, and its other tables.
+
+    A file may name a ``base = "other.toml"`` (a file in the same folder): the file's tables are then read
+    on top of the base's, key by key (``[ppo]`` ``lr`` of the file replaces the base's ``lr`` and keeps the
+    base's other ``[ppo]`` keys); a base may itself name a base.
 
     Args:
         path: the ``.toml`` file (a path or a package-data resource).
@@ -231,16 +280,10 @@ def load_file(path: Path | Traversable, tables: tuple[str, ...] = ()) -> tuple[P
         (validated PPOConfig, dict of the other top-level entries by name).
 
     Raises:
-        UsageError: the file is not valid TOML, has a table not in ``tables``, or a bad ``[ppo]`` value.
+        UsageError: the file or its base is not valid TOML, a base is missing or chains back, a table is not
+            in ``tables``, or a ``[ppo]`` value is bad.
     """
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        raise UsageError(f"preset {str(path)!r} is not UTF-8 text; expected a TOML file") from None
-    except OSError as e:
-        raise UsageError(f"preset {str(path)!r} cannot be read ({e.strerror or type(e).__name__})") from None
-    except tomllib.TOMLDecodeError as e:
-        raise UsageError(f"preset {str(path)!r} is not valid TOML: {e}") from None
+    data = _resolve_base(path, _read_toml(path), (str(path),))
     unknown = set(data) - {"ppo", "description", *tables}
     if unknown:
         allowed = ", ".join(("ppo", *tables))
