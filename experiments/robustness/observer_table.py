@@ -3,7 +3,8 @@
     python experiments/robustness/observer_table.py
 
 Reads ``results/mc_observer_{clean,nogust,noise3}/summary.json``, the same conditions of the 0.15 Hz
-observer, ``results/mc_observer015_*``, and of ``smc-brake-zoom``, ``results/mc_observer_zoom_*`` (``harv-jax
+observer, ``results/mc_observer015_*``, of ``smc-brake-zoom``, ``results/mc_observer_zoom_*``, and of the
+extended-state observer, ``results/mc_eso_*`` (``harv-jax
 mc`` with the commands in the README) and prints, per
 controller and condition, recovered share, mean recovery time (not recovered at the run length), control TV
 and chatter index, and TV and chatter against the same controller's clean run.
@@ -17,7 +18,7 @@ from pathlib import Path
 RESULTS = Path(__file__).parent / "results"
 CONDITIONS = (("clean", "clean"), ("noise, delay, model, lag", "nogust"), ("noise 3x", "noise3"))
 #: Result folders: each holds the three conditions as ``<prefix>_<condition>``.
-PREFIXES = ("mc_observer", "mc_observer015", "mc_observer_zoom")
+PREFIXES = ("mc_observer", "mc_observer015", "mc_observer_zoom", "mc_eso")
 
 
 def main() -> None:

@@ -15,8 +15,20 @@ of the coupling), a first-order low-pass of the sensor noise n with its -3 dB po
 carries it. What the model does not predict (model error, gusts, a command delay) is corrected with the same
 bandwidth, and is the price of a low ``bandwidth_hz``.
 
-The observer starts at the first measurement; its deflection estimate starts at the controller state's
-``u_prev_rad`` (``closed_loop`` sets it to the plant's initial deflections).
+``with_state_observer(controller, bandwidth_hz, estimate_bias=True)`` is the extended-state observer: it
+also estimates a constant rate bias d per measured channel (the acceleration the model misses), predicts
+with it and corrects it from the same innovation,
+
+    x_pred  = plant_step(...) + d_{k-1} dt
+    x_est_k = x_pred + L1 * (y_k - x_pred),    d_k = d_{k-1} + (L2 / dt) * (y_k - x_pred)
+
+with ``L1 = 1 - r^2``, ``L2 = (1 - r)^2``, ``r = exp(-2 pi bandwidth_hz dt)``: the estimate error has a
+double pole at r (``bias_gains``). A constant unpredicted rate then leaves no lag in the estimate (the plain
+observer lags it by about d / (2 pi bandwidth_hz)), for a noise gain that falls off like the plain
+observer's of twice the bandwidth (``noise_gain(..., estimate_bias=True)``).
+
+The observer starts at the first measurement (its bias estimate at zero); its deflection estimate starts at
+the controller state's ``u_prev_rad`` (``closed_loop`` sets it to the plant's initial deflections).
 """
 
 from __future__ import annotations
@@ -48,29 +60,49 @@ def correction_gain(bandwidth_hz: float, dt_s: float = DT_S) -> float:
     return 1.0 - math.exp(-2.0 * math.pi * bandwidth_hz * dt_s)
 
 
-def noise_gain(bandwidth_hz: float, f_hz: float, dt_s: float = DT_S) -> float:
-    """|E/N| at ``f_hz``: the design gain from sensor noise to estimate error, exact model (first order)."""
-    gain = correction_gain(bandwidth_hz, dt_s)
-    z = np.exp(-1j * 2 * np.pi * f_hz * dt_s)
-    return float(abs(gain / (1 - (1 - gain) * z)))
+def bias_gains(bandwidth_hz: float, dt_s: float = DT_S) -> tuple[float, float]:
+    """(L1, L2) of the extended-state observer of ``bandwidth_hz``: double pole at exp(-2 pi bandwidth dt)."""
+    r = 1.0 - correction_gain(bandwidth_hz, dt_s)
+    return 1.0 - r * r, (1.0 - r) ** 2
+
+
+def noise_gain(bandwidth_hz: float, f_hz: float, dt_s: float = DT_S, estimate_bias: bool = False) -> float:
+    """|E/N| at ``f_hz``: the design gain from sensor noise to estimate error, exact model."""
+    z1 = np.exp(-1j * 2 * np.pi * f_hz * dt_s)  # z^-1
+    if not estimate_bias:
+        gain = correction_gain(bandwidth_hz, dt_s)
+        return float(abs(gain / (1 - (1 - gain) * z1)))
+    l1, l2 = bias_gains(bandwidth_hz, dt_s)
+    # error state s = [e, eta dt] (estimate error, bias error times dt): s_k = A s_{k-1} - [L1, L2] n_k
+    a = np.array([[1 - l1, 1 - l1], [-l2, 1 - l2]])
+    h = np.linalg.solve(np.eye(2) - a * z1, np.array([l1, l2]))
+    return float(abs(h[0]))
 
 
 @struct.dataclass
 class ObserverState:
-    """The wrapped controller's state, the estimate [10], the deflection estimate [3], whether the first
+    """The wrapped controller's state, the estimate [10], the rate-bias estimate [8] (units of the measured
+    states per s; zero without ``estimate_bias``), the deflection estimate [3], whether the first
     measurement was seen, and ``u_prev_rad`` [3], the last command (the deflections at the start)."""
 
     inner: object
     x_est: jnp.ndarray
+    bias_per_s: jnp.ndarray
     delta_est_rad: jnp.ndarray
     started: jnp.ndarray
     u_prev_rad: jnp.ndarray
     model: object = struct.field(default=None)
 
 
-def with_state_observer(controller: Controller, bandwidth_hz: float) -> Controller:
-    """``controller`` fed the observer's estimate of the wind state (see the module docstring)."""
-    gain = correction_gain(bandwidth_hz)
+def with_state_observer(
+    controller: Controller, bandwidth_hz: float, estimate_bias: bool = False
+) -> Controller:
+    """``controller`` fed the observer's estimate of the wind state (see the module docstring); with
+    ``estimate_bias`` the extended-state observer."""
+    if estimate_bias:
+        gain, bias_gain = bias_gains(bandwidth_hz)
+    else:
+        gain, bias_gain = correction_gain(bandwidth_hz), 0.0
     mu = WIND_INDEX["mu"]
 
     def init(params):
@@ -80,6 +112,7 @@ def with_state_observer(controller: Controller, bandwidth_hz: float) -> Controll
         return ObserverState(
             inner=inner,
             x_est=jnp.zeros((10,), dtype),
+            bias_per_s=jnp.zeros((NUM_MEASURED,), dtype),
             delta_est_rad=u_prev,
             started=jnp.asarray(False),
             u_prev_rad=u_prev,
@@ -93,17 +126,23 @@ def with_state_observer(controller: Controller, bandwidth_hz: float) -> Controll
         _, delta_next, x_pred = plant_step(
             from_wind(state.x_est), delta_est, state.u_prev_rad, state.model, DT_S
         )
+        bias = state.bias_per_s
+        if estimate_bias:
+            x_pred = x_pred.at[:NUM_MEASURED].add(bias * DT_S)
         innovation = (x_wind - x_pred)[:NUM_MEASURED]
         innovation = innovation.at[mu].set(wrap_angle_rad(innovation[mu]))
         x_corr = x_wind.at[:NUM_MEASURED].set(x_pred[:NUM_MEASURED] + gain * innovation)
         x_corr = x_corr.at[mu].set(wrap_angle_rad(x_corr[mu]))
         x_est = jnp.where(first, x_wind, x_corr)
+        if estimate_bias:
+            bias = jnp.where(first, bias, bias + (bias_gain / DT_S) * innovation)
         delta_est = jnp.where(first, delta_est, delta_next)
         inner = inner_at_start(state.inner, first, state.u_prev_rad)
         u, inner, info = controller.apply(inner, x_est, reference_rad, key)
         new = state.replace(
             inner=inner,
             x_est=x_est,
+            bias_per_s=bias.astype(dtype),
             delta_est_rad=delta_est.astype(dtype),
             started=jnp.asarray(True),
             u_prev_rad=u.astype(dtype),

@@ -8,8 +8,9 @@ line in :data:`CONTROLLERS` (or one :func:`register` call from outside the packa
 
 Any name takes a measurement path as a suffix: ``smc+lp2`` is the SMC fed its measured states through a
 second-order Butterworth low-pass at 2 Hz (``harv_jax.control.filters``); ``smc+obs0.5`` the SMC fed the
-estimate of a model-based observer of 0.5 Hz bandwidth (``harv_jax.control.observer``); ``rl+lp1.5``,
-``hybrid+obs1`` alike.
+estimate of a model-based observer of 0.5 Hz bandwidth (``harv_jax.control.observer``), ``smc+eso0.1``
+that of the extended-state observer (the observer that also estimates the rate bias the model misses);
+``rl+lp1.5``, ``hybrid+obs1`` alike.
 
 A builder takes the :class:`ControllerOptions` of the command line and returns a
 ``Controller(init, apply)`` (``harv_jax.control.base``); ``options`` names the fields it reads, so the
@@ -184,7 +185,8 @@ def controller_names() -> tuple[str, ...]:
 
 def _unknown(name: str) -> UsageError:
     return UsageError(
-        f"unknown controller {name!r}; allowed: {', '.join(CONTROLLERS)} (each may end in +lpHZ or +obsHZ)"
+        f"unknown controller {name!r}; allowed: {', '.join(CONTROLLERS)} "
+        "(each may end in +lpHZ, +obsHZ or +esoHZ)"
     )
 
 
@@ -192,6 +194,8 @@ def _unknown(name: str) -> UsageError:
 FILTER_SUFFIX = "+lp"
 #: Suffix of the model-based observer: ``<name>+obs<bandwidth Hz>``.
 OBSERVER_SUFFIX = "+obs"
+#: Suffix of the extended-state observer (with a rate-bias estimate): ``<name>+eso<bandwidth Hz>``.
+ESO_SUFFIX = "+eso"
 #: Order of the filter suffix's Butterworth low-pass.
 FILTER_ORDER = 2
 #: Cutoffs / bandwidths a suffix may name, Hz (below the plant rate's Nyquist frequency).
@@ -201,7 +205,7 @@ FILTER_CUTOFF_RANGE_HZ = (0.05, 40.0)
 class MeasurementPath(NamedTuple):
     """What a controller name's suffix puts between the sensors and the controller."""
 
-    suffix: str  # FILTER_SUFFIX or OBSERVER_SUFFIX
+    suffix: str  # FILTER_SUFFIX, OBSERVER_SUFFIX or ESO_SUFFIX
     bandwidth_hz: float
 
 
@@ -215,7 +219,8 @@ def split_filter(name: str) -> tuple[str, MeasurementPath | None]:
     base, plus, rest = name.partition("+")
     if not plus:
         return name, None
-    suffix = next((s for s in (OBSERVER_SUFFIX, FILTER_SUFFIX) if ("+" + rest).startswith(s)), None)
+    suffixes = (OBSERVER_SUFFIX, ESO_SUFFIX, FILTER_SUFFIX)
+    suffix = next((s for s in suffixes if ("+" + rest).startswith(s)), None)
     text = rest[len(suffix) - 1 :] if suffix else rest
     lo, hi = FILTER_CUTOFF_RANGE_HZ
     try:
@@ -224,8 +229,9 @@ def split_filter(name: str) -> tuple[str, MeasurementPath | None]:
         hz = float("nan")
     if suffix is None or not (lo <= hz <= hi):  # also false for nan
         raise UsageError(
-            f"controller {name!r}: the suffix +{rest} needs to be +lpHZ (low-pass) or +obsHZ (observer) with "
-            f"HZ from {lo:g} to {hi:g} (e.g. {base}{FILTER_SUFFIX}2, {base}{OBSERVER_SUFFIX}0.5)"
+            f"controller {name!r}: the suffix +{rest} needs to be +lpHZ (low-pass), +obsHZ (observer) or "
+            f"+esoHZ (extended-state observer) with HZ from {lo:g} to {hi:g} (e.g. {base}{FILTER_SUFFIX}2, "
+            f"{base}{OBSERVER_SUFFIX}0.5)"
         )
     return base, MeasurementPath(suffix, hz)
 
@@ -238,10 +244,10 @@ def build_controller(name: str, options: ControllerOptions | None = None) -> Con
     ctrl = CONTROLLERS[base].build(options or ControllerOptions())
     if path is None:
         return ctrl
-    if path.suffix == OBSERVER_SUFFIX:
+    if path.suffix in (OBSERVER_SUFFIX, ESO_SUFFIX):
         from harv_jax.control.observer import with_state_observer
 
-        return with_state_observer(ctrl, path.bandwidth_hz)
+        return with_state_observer(ctrl, path.bandwidth_hz, estimate_bias=path.suffix == ESO_SUFFIX)
     from harv_jax.control.filters import with_measurement_filter
 
     return with_measurement_filter(ctrl, path.bandwidth_hz, FILTER_ORDER)
