@@ -89,6 +89,8 @@ BAD_PRESETS: dict[str, tuple[str | bytes | None, str]] = {
     "env_string": ('[env]\ndt_s = "0.01"\n', "env.dt_s = '0.01'"),
     "env_float_for_int": ("[env]\nepisode_steps = 100.5\n", "env.episode_steps = 100.5"),
     "env_bool_for_int": ("[env]\nmax_delay_steps = true\n", "env.max_delay_steps = True"),
+    "env_v0_weight": ("[env]\nv0_fast_weight = 0.0\n", "env.v0_fast_weight = 0.0"),
+    "env_v0_from": ("[env]\nv0_fast_from_fps = nan\n", "env.v0_fast_from_fps = nan"),
     "env_int_for_bool": ("[env]\ndomain_randomization = 1\n", "env.domain_randomization = 1"),
     "env_list": ("[env]\nthrottle = [0.2]\n", "env.throttle = [0.2]"),
     "env_dt_zero": ("[env]\ndt_s = 0.0\n", "env.dt_s = 0.0"),

@@ -15,6 +15,7 @@ reset bounds); docs/model.md ("Envelope and reset bounds").
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import jax
 import jax.numpy as jnp
@@ -74,6 +75,10 @@ class EnvConfig:
         observe_tracking_integral: the observation gains three components, the integral of the tracking
             error, rad s (``task.spaces.INTEGRAL_OBS_NAMES``; default off; not with
             ``observe_engage_airspeed``).
+        v0_fast_weight: density of the initial airspeed above ``v0_fast_from_fps`` relative to below it in
+            the uniform resets (1: uniform over the reset bounds, the paper; 2: fast engagements twice as
+            likely per ft/s). Spin resets and the Monte Carlo's runs are not affected.
+        v0_fast_from_fps: where the weighted band of initial airspeeds starts, ft/s.
     """
 
     dt_s: float = DT_S
@@ -87,6 +92,8 @@ class EnvConfig:
     aircraft: str = DEFAULT_AIRCRAFT
     observe_engage_airspeed: bool = False
     observe_tracking_integral: bool = False
+    v0_fast_weight: float = 1.0
+    v0_fast_from_fps: float = 1000.0
 
     @property
     def observation_layout(self) -> ObservationLayout:
@@ -104,6 +111,10 @@ class EnvConfig:
             raise ValueError(f"max_delay_steps={self.max_delay_steps!r} must be >= 0")
         if not 0.0 < self.discount <= 1.0:
             raise ValueError(f"discount={self.discount!r} must be in (0, 1]")
+        if not (math.isfinite(self.v0_fast_weight) and self.v0_fast_weight > 0):
+            raise ValueError(f"v0_fast_weight={self.v0_fast_weight!r} must be finite and > 0")
+        if not (math.isfinite(self.v0_fast_from_fps) and self.v0_fast_from_fps > 0):
+            raise ValueError(f"v0_fast_from_fps={self.v0_fast_from_fps!r} must be finite and > 0")
         check_aircraft_name(self.aircraft)
         _ = self.observation_layout  # ValueError for both extensions at once
 

@@ -149,6 +149,17 @@ class Env(NamedTuple):
     action_size: int = ACTION_SIZE
 
 
+def weighted_airspeed(u01, v_low_fps, v_high_fps, v_split_fps: float, weight_above: float):
+    """Airspeed from one U(0, 1) draw: uniform on [v_low, v_split] and on [v_split, v_high], the upper band
+    ``weight_above`` times as dense per ft/s (the inverse of that piecewise-uniform distribution)."""
+    split = jnp.clip(v_split_fps, v_low_fps, v_high_fps)
+    below, above = split - v_low_fps, weight_above * (v_high_fps - split)
+    p_below = below / jnp.maximum(below + above, 1e-9)
+    v_lo_band = v_low_fps + (split - v_low_fps) * u01 / jnp.maximum(p_below, 1e-9)
+    v_hi_band = split + (v_high_fps - split) * (u01 - p_below) / jnp.maximum(1.0 - p_below, 1e-9)
+    return jnp.where(u01 < p_below, v_lo_band, v_hi_band)
+
+
 def with_auto_reset(step_no_reset: Callable[..., tuple], reset: Callable[..., tuple]) -> Callable[..., tuple]:
     """``step(key, state, action, params) -> (obs, state, reward, done, info)`` with auto-reset.
 
@@ -203,6 +214,11 @@ def make_env(config: EnvConfig | None = None) -> Env:
         x_uniform = jnp.concatenate(
             [rp.low + (rp.high - rp.low) * u01[:_N_RESET_STATE], 0.0 * u01[:1], params.h0_ft[None]]
         )  # chi = 0, h = h0
+        if config.v0_fast_weight != 1.0:
+            v0 = weighted_airspeed(
+                u01[0], rp.low[0], rp.high[0], config.v0_fast_from_fps, config.v0_fast_weight
+            )
+            x_uniform = x_uniform.at[0].set(v0)
         n_spin = params.spin_states.shape[0]
         idx = jnp.minimum(jnp.floor(u01[_U_SPIN_INDEX] * n_spin).astype(jnp.int32), n_spin - 1)
         x_spin = params.spin_states[idx] + params.spin_perturb * (2.0 * u01[_U_SPIN_PERTURB] - 1.0)
