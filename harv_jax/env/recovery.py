@@ -149,7 +149,13 @@ class Env(NamedTuple):
     action_size: int = ACTION_SIZE
 
 
-def weighted_airspeed(u01, v_low_fps, v_high_fps, v_split_fps: float, weight_above: float):
+def weighted_airspeed(
+    u01: jnp.ndarray,
+    v_low_fps: jnp.ndarray | float,
+    v_high_fps: jnp.ndarray | float,
+    v_split_fps: float,
+    weight_above: float,
+) -> jnp.ndarray:
     """Airspeed from one U(0, 1) draw: uniform on [v_low, v_split] and on [v_split, v_high], the upper band
     ``weight_above`` times as dense per ft/s (the inverse of that piecewise-uniform distribution)."""
     split = jnp.clip(v_split_fps, v_low_fps, v_high_fps)
