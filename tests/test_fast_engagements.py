@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from harv_jax.env import EnvConfig, default_params, make_env
-from harv_jax.env.recovery import weighted_airspeed
+from harv_jax.task.scenarios import weighted_airspeed
 
 
 def test_weighted_airspeed_is_piecewise_uniform_with_the_asked_share():

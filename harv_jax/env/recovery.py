@@ -62,6 +62,7 @@ from harv_jax.env import randomize, reward
 from harv_jax.env.config import EnvConfig, EnvParams, default_params
 from harv_jax.env.randomize import EpisodeParams
 from harv_jax.env.termination import termination_flags
+from harv_jax.task.scenarios import weighted_airspeed
 from harv_jax.task.spaces import (
     ACTION_SIZE,
     NUM_MEASURED,
@@ -147,23 +148,6 @@ class Env(NamedTuple):
     batch_step: Callable[..., tuple[jnp.ndarray, EnvState, jnp.ndarray, jnp.ndarray, dict[str, Any]]]
     observation_size: int = OBSERVATION_SIZE
     action_size: int = ACTION_SIZE
-
-
-def weighted_airspeed(
-    u01: jnp.ndarray,
-    v_low_fps: jnp.ndarray | float,
-    v_high_fps: jnp.ndarray | float,
-    v_split_fps: float,
-    weight_above: float,
-) -> jnp.ndarray:
-    """Airspeed from one U(0, 1) draw: uniform on [v_low, v_split] and on [v_split, v_high], the upper band
-    ``weight_above`` times as dense per ft/s (the inverse of that piecewise-uniform distribution)."""
-    split = jnp.clip(v_split_fps, v_low_fps, v_high_fps)
-    below, above = split - v_low_fps, weight_above * (v_high_fps - split)
-    p_below = below / jnp.maximum(below + above, 1e-9)
-    v_lo_band = v_low_fps + (split - v_low_fps) * u01 / jnp.maximum(p_below, 1e-9)
-    v_hi_band = split + (v_high_fps - split) * (u01 - p_below) / jnp.maximum(1.0 - p_below, 1e-9)
-    return jnp.where(u01 < p_below, v_lo_band, v_hi_band)
 
 
 def with_auto_reset(step_no_reset: Callable[..., tuple], reset: Callable[..., tuple]) -> Callable[..., tuple]:
