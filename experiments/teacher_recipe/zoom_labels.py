@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
+import sys
 from pathlib import Path
 
 import jax
@@ -70,7 +70,7 @@ def main() -> None:
     for name, row in rows.items():
         print(name, row, flush=True)
     out = {
-        "command": " ".join(["python", *os.sys.argv]),
+        "command": " ".join(["python", *sys.argv]),
         "mc_seed": a.mc_seed,
         "runs_engaged_at_or_above_1200_fps": int(runs.size),
         "seconds_flown": N_STEPS * DT_S,

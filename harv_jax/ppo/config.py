@@ -245,7 +245,7 @@ def _resolve_base(path: Path | Traversable, data: dict[str, Any], chain: tuple[s
         raise UsageError(
             f"preset {str(path)!r}: base = {base!r}; allowed: the name of a .toml file in the same folder"
         )
-    base_path = Path(str(path)).parent / base
+    base_path = (Path(str(path)).parent / base).resolve()
     if str(base_path) in chain or len(chain) >= MAX_BASE_DEPTH:
         raise UsageError(
             f"preset {str(path)!r}: base = {base!r} makes a chain of {len(chain) + 1} files "
@@ -283,7 +283,7 @@ def load_file(path: Path | Traversable, tables: tuple[str, ...] = ()) -> tuple[P
         UsageError: the file or its base is not valid TOML, a base is missing or chains back, a table is not
             in ``tables``, or a ``[ppo]`` value is bad.
     """
-    data = _resolve_base(path, _read_toml(path), (str(path),))
+    data = _resolve_base(path, _read_toml(path), (str(Path(str(path)).resolve()),))
     unknown = set(data) - {"ppo", "description", *tables}
     if unknown:
         allowed = ", ".join(("ppo", *tables))

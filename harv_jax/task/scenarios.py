@@ -116,7 +116,7 @@ def weighted_airspeed(
     split = jnp.clip(v_split_fps, v_low_fps, v_high_fps)
     below, above = split - v_low_fps, weight_above * (v_high_fps - split)
     p_below = below / jnp.maximum(below + above, 1e-9)
-    v_lo_band = v_low_fps + (split - v_low_fps) * u01 / jnp.maximum(p_below, 1e-9)
+    v_lo_band = v_low_fps + below * u01 / jnp.maximum(p_below, 1e-9)
     v_hi_band = split + (v_high_fps - split) * (u01 - p_below) / jnp.maximum(1.0 - p_below, 1e-9)
     return jnp.where(u01 < p_below, v_lo_band, v_hi_band)
 
