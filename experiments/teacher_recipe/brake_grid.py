@@ -3,9 +3,12 @@ makes the best teacher by the mean recovery time and the share of runs slower th
 
     python experiments/teacher_recipe/brake_grid.py --mc-seed 11 --out results/brake_grid_mc11.json
     python experiments/teacher_recipe/brake_grid.py --zoom --mc-seed 11 --out results/zoom_grid_mc11.json
+    python experiments/teacher_recipe/brake_grid.py --blend --mc-seed 11 --out results/blend_grid_mc11.json
 
 ``--zoom`` sweeps the bound of ``smc-brake-zoom`` instead (alpha_brake 1.0 rad while
 V_switch < V < V_zoom - k_zoom max(gamma, 0)): V_switch x V_zoom x k_zoom, also by the control TV.
+``--blend`` sweeps the width of the blend of ``smc-brake-zoom``'s reference across its bounds
+(``smc-brake-zoom-soft``: 100 ft/s).
 Monte Carlo seed 11 is the tuning seed of this study (the final evaluation uses others).
 """
 
@@ -21,8 +24,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from harv_jax.aircraft import harv
-from harv_jax.control.smc import make_smc
-from harv_jax.control.smc_brake import brake_schedule, make_smc_brake
+from harv_jax.control.smc import SMCConfig, make_smc
+from harv_jax.control.smc_brake import SOFT_RESET_TOL_RAD, brake_schedule, make_smc_brake, zoom_schedule
 from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
 from harv_jax.evaluation.paired import mean_nr_at_run_s, paired_vs_reference
 from harv_jax.task.spec import ALPHA_TARGET_RAD
@@ -38,6 +41,9 @@ ZOOM_GRID = {
     "zoom_slope_fps_per_rad": (300.0, 600.0, 900.0, 1200.0),
 }
 
+#: The ``--blend`` widths of smc-brake-zoom's reference blend, ft/s (0: the step).
+BLEND_GRID = (0.0, 50.0, 100.0, 200.0, 300.0)
+
 
 def times(ctrl, inputs):
     m = run_mc(ctrl, inputs, REF, N_STEPS)[0].metrics
@@ -51,11 +57,25 @@ def main() -> None:
     ap.add_argument("--mc-seed", type=int, default=11)
     ap.add_argument("--n", type=int, default=1000)
     ap.add_argument("--zoom", action="store_true", help="sweep smc-brake-zoom's bound instead")
+    ap.add_argument("--blend", action="store_true", help="sweep smc-brake-zoom's blend width instead")
     ap.add_argument("--out", type=Path, required=True)
     a = ap.parse_args()
     inputs = sample_mc_inputs(jax.random.key(a.mc_seed), a.n, harv())
     t_smc, r_smc, tv_smc = times(make_smc(), inputs)
     smc_mean_s = mean_nr_at_run_s(t_smc, r_smc, DURATION_S)
+    if a.blend:
+        rows = [{"controller": "smc", "mean_s": smc_mean_s, "tv_rad": tv_smc}]
+        for width in BLEND_GRID:
+            cfg = SMCConfig(reference_step_tol_rad=SOFT_RESET_TOL_RAD if width > 0 else 0.0)
+            t, r, tv = times(make_smc_brake(cfg, schedule=zoom_schedule(blend_fps=width)), inputs)
+            vs = paired_vs_reference(t, r, t_smc, r_smc, DURATION_S)
+            row = {"blend_fps": width, "recovered": float(r.mean()),
+                   "mean_s": mean_nr_at_run_s(t, r, DURATION_S), "tv_rad": tv, **vs}  # fmt: skip
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+        cmd = f"python experiments/teacher_recipe/brake_grid.py --blend --mc-seed {a.mc_seed} --n {a.n}"
+        a.out.write_text(json.dumps({"command": cmd, "rows": rows}, indent=2) + "\n")
+        return
     if a.zoom:
         rows = [{"controller": "smc", "mean_s": smc_mean_s, "tv_rad": tv_smc}]
     else:

@@ -98,6 +98,14 @@ def _build_smc_brake_zoom(opts: ControllerOptions) -> Controller:
     return sb.make_smc_brake(SMCConfig(switching=opts.switching), schedule=sb.zoom_schedule())
 
 
+def _build_smc_brake_zoom_soft(opts: ControllerOptions) -> Controller:
+    from harv_jax.control import smc_brake as sb
+    from harv_jax.control.smc import SMCConfig
+
+    cfg = SMCConfig(switching=opts.switching, reference_step_tol_rad=sb.SOFT_RESET_TOL_RAD)
+    return sb.make_smc_brake(cfg, schedule=sb.zoom_schedule(blend_fps=sb.SOFT_BLEND_FPS))
+
+
 def _policy_act(policy: str | None) -> tuple[Callable, ObservationLayout]:
     """The deterministic action of the policy at ``policy`` and its observation layout (11, 12 or 14
     observations); UsageError if its sizes do not fit."""
@@ -156,6 +164,11 @@ CONTROLLERS: dict[str, ControllerEntry] = {
         _build_smc_brake_zoom,
         ("switching",),
         "smc-brake while 600 < V < 1200 - 600 max(gamma, 0) ft/s: not in a zoom climb (control.smc_brake)",
+    ),
+    "smc-brake-zoom-soft": ControllerEntry(
+        _build_smc_brake_zoom_soft,
+        ("switching",),
+        "smc-brake-zoom with its alpha reference blended over 100 ft/s at each bound (control.smc_brake)",
     ),
 }
 

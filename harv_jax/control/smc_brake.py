@@ -72,6 +72,13 @@ ZOOM_V_SWITCH_FPS = 600.0
 V_ZOOM_FPS = 1200.0
 #: ``smc-brake-zoom``: how much each radian of climb angle lowers that bound, ft/s per rad.
 ZOOM_SLOPE_FPS_PER_RAD = 600.0
+#: ``smc-brake-zoom-soft``: width of the blend at each bound of the braking band, ft/s.
+SOFT_BLEND_FPS = 100.0
+#: Largest blend width a schedule accepts, ft/s.
+MAX_BLEND_FPS = 500.0
+#: ``smc-brake-zoom-soft``: the SMC's integral is reset only on reference steps larger than this, rad
+#: (the blended reference moves a little every step; a target change steps it by far more).
+SOFT_RESET_TOL_RAD = 0.02
 
 
 @struct.dataclass
@@ -86,6 +93,8 @@ class BrakeSchedule:
         v_zoom_fps: brake only while V < v_zoom_fps - zoom_slope_fps_per_rad * max(gamma, 0), ft/s
             (inf: no upper bound, ``smc-brake``).
         zoom_slope_fps_per_rad: how much the climb angle lowers that bound, ft/s per rad.
+        blend_fps: width of the airspeed band over which the reference blends from alpha_d to
+            alpha_brake at each bound (a smoothstep centred on the bound), ft/s (0: a step at the bound).
     """
 
     alpha_brake_rad: jnp.ndarray
@@ -93,6 +102,7 @@ class BrakeSchedule:
     v_engage_max_fps: jnp.ndarray
     v_zoom_fps: jnp.ndarray
     zoom_slope_fps_per_rad: jnp.ndarray
+    blend_fps: jnp.ndarray
 
 
 def brake_schedule(
@@ -102,13 +112,14 @@ def brake_schedule(
     v_engage_max_fps: float = math.inf,
     v_zoom_fps: float = math.inf,
     zoom_slope_fps_per_rad: float = 0.0,
+    blend_fps: float = 0.0,
 ) -> BrakeSchedule:
     """A checked :class:`BrakeSchedule` from Python numbers (UsageError naming a bad value).
 
     alpha_brake_rad must lie in the alpha envelope [ALPHA_MIN_RAD, ALPHA_MAX_RAD]; v_switch_fps in
     [0, V_MAX_FPS] (0: brake at every airspeed; V_MAX_FPS: never brake inside the envelope);
     v_engage_max_fps above 0 (inf: brake from any engagement airspeed); v_zoom_fps above v_switch_fps
-    (inf: no upper bound); zoom_slope_fps_per_rad finite and >= 0.
+    (inf: no upper bound); zoom_slope_fps_per_rad finite and >= 0; blend_fps in [0, MAX_BLEND_FPS].
     """
     if not (math.isfinite(alpha_brake_rad) and ALPHA_MIN_RAD <= alpha_brake_rad <= ALPHA_MAX_RAD):
         raise UsageError(
@@ -127,6 +138,8 @@ def brake_schedule(
         raise UsageError(
             f"zoom_slope_fps_per_rad {zoom_slope_fps_per_rad} must be finite and >= 0 ft/s per rad"
         )
+    if not (math.isfinite(blend_fps) and 0.0 <= blend_fps <= MAX_BLEND_FPS):
+        raise UsageError(f"blend_fps {blend_fps} must be in [0, {MAX_BLEND_FPS:g}] ft/s (0: a step)")
     dtype = jnp.result_type(float) if dtype is None else dtype  # not weakly typed: no retrace on sweeps
     return BrakeSchedule(
         alpha_brake_rad=jnp.asarray(alpha_brake_rad, dtype),
@@ -134,6 +147,7 @@ def brake_schedule(
         v_engage_max_fps=jnp.asarray(v_engage_max_fps, dtype),
         v_zoom_fps=jnp.asarray(v_zoom_fps, dtype),
         zoom_slope_fps_per_rad=jnp.asarray(zoom_slope_fps_per_rad, dtype),
+        blend_fps=jnp.asarray(blend_fps, dtype),
     )
 
 
@@ -151,15 +165,22 @@ class SMCBrakeState(SMCState):
     brake_enabled: jnp.ndarray
 
 
-def zoom_schedule(dtype=None) -> BrakeSchedule:
+def zoom_schedule(dtype=None, blend_fps: float = 0.0) -> BrakeSchedule:
     """``smc-brake-zoom``'s schedule: brake while ZOOM_V_SWITCH_FPS < V < V_ZOOM_FPS - ZOOM_SLOPE_FPS_PER_RAD
-    max(gamma, 0)."""
+    max(gamma, 0); ``blend_fps`` > 0 blends the reference across each bound (``smc-brake-zoom-soft``)."""
     return brake_schedule(
         v_switch_fps=ZOOM_V_SWITCH_FPS,
         dtype=dtype,
         v_zoom_fps=V_ZOOM_FPS,
         zoom_slope_fps_per_rad=ZOOM_SLOPE_FPS_PER_RAD,
+        blend_fps=blend_fps,
     )
+
+
+def _smoothstep(x: jnp.ndarray) -> jnp.ndarray:
+    """0 below 0, 1 above 1, 3x^2 - 2x^3 between."""
+    x = jnp.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
 
 
 def braking_reference(
@@ -169,12 +190,27 @@ def braking_reference(
     enabled: jnp.ndarray | bool = True,
 ) -> tuple[jnp.ndarray, jnp.ndarray]:
     """(the reference [3] the SMC flies, braking flag): alpha_d -> alpha_brake while
-    v_switch < V < v_zoom - k_zoom max(gamma, 0) (and ``enabled``, the engagement-time choice)."""
+    v_switch < V < v_zoom - k_zoom max(gamma, 0) (and ``enabled``, the engagement-time choice).
+
+    With ``schedule.blend_fps`` = w > 0 the alpha reference is alpha_d + b (alpha_brake - alpha_d), b the
+    product of smoothsteps of width w centred on each bound (continuous in V and gamma; b = 1 deep inside
+    the band, 0 outside it by w / 2); the flag is b > 1/2. With w = 0 it is the step, exactly."""
     v = x_wind[WIND_INDEX["V"]]
     climb_rad = jnp.maximum(x_wind[WIND_INDEX["gamma"]], 0.0)
     v_upper = schedule.v_zoom_fps - schedule.zoom_slope_fps_per_rad * climb_rad
     braking = (v > schedule.v_switch_fps) & (v < v_upper) & enabled
-    alpha = jnp.where(braking, schedule.alpha_brake_rad.astype(reference_rad.dtype), reference_rad[0])
+    alpha_brake = schedule.alpha_brake_rad.astype(reference_rad.dtype)
+    alpha = jnp.where(braking, alpha_brake, reference_rad[0])
+    width = schedule.blend_fps
+    soft = width > 0.0
+    safe_width = jnp.where(soft, width, 1.0)
+    blend = (
+        _smoothstep((v - schedule.v_switch_fps) / safe_width + 0.5)
+        * _smoothstep((v_upper - v) / safe_width + 0.5)
+        * jnp.asarray(enabled, reference_rad.dtype)
+    ).astype(reference_rad.dtype)
+    alpha = jnp.where(soft, reference_rad[0] + blend * (alpha_brake - reference_rad[0]), alpha)
+    braking = jnp.where(soft, blend > 0.5, braking)
     return reference_rad.at[0].set(alpha), braking
 
 
