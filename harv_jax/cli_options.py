@@ -81,14 +81,29 @@ def zeta_option():
     return typer.Option(DEFAULT_ZETA, help=ZETA_HELP)
 
 
+def force_option(what: str = "non-empty output directory"):
+    """``--force``: replace an existing ``what`` (default False)."""
+    return typer.Option(False, help=f"Replace an existing {what}.")
+
+
+def chunk_option():
+    """``--chunk`` of a batched closed-loop command (default None: sized from the CPU count and memory)."""
+    return typer.Option(
+        None,
+        parser=whole_number,
+        help="Runs per compiled call (bounds memory). Default: 512 per CPU core, all runs on a GPU, "
+        "within 1/8 of memory. Results depend on it at float rounding.",
+    )
+
+
 def controllers_help() -> str:
     """``--controller`` help (fixed text; the error for an unknown name lists the registered ones)."""
     return (
-        "Controllers, comma-separated: smc, smc-brake, smc-brake-v0, smc-brake-zoom, rl, hybrid or another "
-        "name in harv_jax.control.registry; NAME+lpHZ feeds NAME its measurements through a 2nd-order "
-        "low-pass at HZ (e.g. smc+lp2), NAME+obsHZ the estimate of a model-based observer of HZ bandwidth "
-        "(e.g. smc+obs0.1), NAME+esoHZ that of the extended-state observer, which also estimates the rate "
-        "bias the model misses (e.g. rl+eso0.075)."
+        "Controllers, comma-separated: smc, smc-brake, smc-brake-v0, smc-brake-zoom, smc-brake-zoom-soft, "
+        "rl, hybrid or another name in harv_jax.control.registry; NAME+lpHZ feeds NAME its measurements "
+        "through a 2nd-order low-pass at HZ (e.g. smc+lp2), NAME+obsHZ the estimate of a model-based "
+        "observer of HZ bandwidth (e.g. smc+obs0.1), NAME+esoHZ that of the extended-state observer, which "
+        "also estimates the rate bias the model misses (e.g. rl+eso0.075)."
     )
 
 

@@ -16,6 +16,7 @@ from harv_jax.cli_options import (
     aircraft_option,
     controllers_help,
     disturbance_options,
+    force_option,
     policy_option,
     real_number,
     whole_number,
@@ -49,7 +50,7 @@ def register(app: typer.Typer) -> None:
             0, parser=whole_number, help="Seed of the controller keys and of the disturbance draws."
         ),
         out: Path = typer.Option(Path("runs/compare"), help="Output directory."),
-        force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
+        force: bool = force_option(),
         disturbance_spec: Any = None,
         aircraft_name: str | None = None,
     ) -> None:

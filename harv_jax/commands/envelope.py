@@ -20,8 +20,10 @@ import typer
 
 from harv_jax.cli_options import (
     aircraft_option,
+    chunk_option,
     controllers_help,
     disturbance_options,
+    force_option,
     policy_option,
     real_number,
     whole_number,
@@ -140,14 +142,9 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(
             0, parser=whole_number, help="Seed of the controllers' keys (the grid itself is deterministic)."
         ),
-        chunk: int | None = typer.Option(
-            None,
-            parser=whole_number,
-            help="Runs per compiled call (bounds memory). Default: 512 per CPU core, all runs on a GPU, "
-            "within 1/8 of memory. Results depend on it at float rounding.",
-        ),
+        chunk: int | None = chunk_option(),
         out: Path = typer.Option(Path("runs/envelope"), help="Output directory."),
-        force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
+        force: bool = force_option(),
         disturbance_spec: Any = None,
         aircraft_name: str | None = None,
     ) -> None:

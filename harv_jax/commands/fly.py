@@ -10,6 +10,7 @@ import typer
 from harv_jax.cli_options import (
     aircraft_option,
     disturbance_options,
+    force_option,
     policy_option,
     real_number,
     whole_number,
@@ -46,7 +47,7 @@ def register(app: typer.Typer) -> None:
             0, parser=whole_number, help="Seed of the random scenario and of the controller key."
         ),
         out: Path = typer.Option(Path("runs/fly"), help="Output directory."),
-        force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
+        force: bool = force_option(),
         switching: str = typer.Option("sat", help="SMC switching: sat (boundary layer) or sign (paper)."),
         spin_s: float = typer.Option(
             30.0, parser=real_number, help="Spin scenario: seconds held in the spin before engagement."

@@ -9,8 +9,10 @@ import typer
 
 from harv_jax.cli_options import (
     aircraft_option,
+    chunk_option,
     controllers_help,
     disturbance_options,
+    force_option,
     knows_aircraft_option,
     policy_option,
     real_number,
@@ -42,14 +44,9 @@ def register(app: typer.Typer) -> None:
             "aircraft (model error; the same as model in --disturbances).",
         ),
         controller_knows_aircraft: bool = knows_aircraft_option(),
-        chunk: int | None = typer.Option(
-            None,
-            parser=whole_number,
-            help="Runs per compiled call (bounds memory). Default: 512 per CPU core, all runs on a GPU, "
-            "within 1/8 of memory. Results depend on it at float rounding.",
-        ),
+        chunk: int | None = chunk_option(),
         out: Path = typer.Option(Path("runs/mc"), help="Output directory."),
-        force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
+        force: bool = force_option(),
         save_trajectories: bool = typer.Option(
             False, help="Also write trajectories_<controller>.npz (alpha, beta, mu of every run every 0.1 s)."
         ),

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import typer
 
-from harv_jax.cli_options import aircraft_option, real_number, whole_number
+from harv_jax.cli_options import aircraft_option, force_option, real_number, whole_number
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 #: The search's run length (the Monte Carlo's) and its surrogate's hold window, s (``optimal.search``
@@ -42,7 +42,7 @@ def register(app: typer.Typer) -> None:
         target_alpha: float = typer.Option(ALPHA_TARGET_RAD, parser=real_number, help="Target alpha, rad."),
         spin_s: float = typer.Option(30.0, parser=real_number, help="Seconds in the spin before engagement."),
         out: Path = typer.Option(Path("runs/optimal"), help="Output directory."),
-        force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
+        force: bool = force_option(),
         save_demos: Path = typer.Option(None, help="Also write the optimized trajectories as demos (.npz)."),
         aircraft_name: str | None = None,
     ) -> None:

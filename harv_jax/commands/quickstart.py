@@ -17,6 +17,7 @@ import typer
 from harv_jax.cli_options import (
     aircraft_option,
     disturbance_options,
+    force_option,
     policy_option,
     whole_number,
     zeta_option,
@@ -39,7 +40,7 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(0, parser=whole_number, help="Seed of the Monte Carlo."),
         policy: str = policy_option(),
         zeta: str = zeta_option(),
-        force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
+        force: bool = force_option(),
         disturbance_spec: Any = None,
         aircraft_name: str | None = None,
     ) -> None:

@@ -10,13 +10,15 @@ from pathlib import Path
 
 import typer
 
+from harv_jax.cli_options import force_option
+
 
 def register(app: typer.Typer) -> None:
     @app.command()
     def report(
         run_dir: Path = typer.Argument(..., help="A run directory (mc, compare, envelope, fly, quickstart)."),
         out: Path = typer.Option(None, help="Report directory (default: RUN_DIR itself)."),
-        force: bool = typer.Option(False, help="Replace an existing report / non-empty --out directory."),
+        force: bool = force_option("report / non-empty --out directory"),
     ) -> None:
         """Markdown + standalone HTML report of a run directory's figures and tables, with its commands."""
         from harv_jax.cli_options import command_line

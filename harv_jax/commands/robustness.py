@@ -9,6 +9,7 @@ import typer
 from harv_jax.cli_options import (
     aircraft_option,
     controllers_help,
+    force_option,
     policy_option,
     real_number,
     whole_number,
@@ -47,7 +48,7 @@ def register(app: typer.Typer) -> None:
         duration: float = typer.Option(60.0, parser=real_number, help="Run length, s."),
         chunk: int | None = typer.Option(None, parser=whole_number, help="Runs per compiled call."),
         out: Path = typer.Option(Path("runs/robustness"), help="Output directory."),
-        force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
+        force: bool = force_option(),
         aircraft_name: str | None = None,
     ) -> None:
         """Margins: recovery, mean recovery time and TV of each controller against each disturbance level."""

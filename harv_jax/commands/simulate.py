@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from harv_jax.cli_options import aircraft_option, real_number, validate_state
+from harv_jax.cli_options import aircraft_option, force_option, real_number, validate_state
 from harv_jax.errors import UsageError
 from harv_jax.task.spec import DT_S, H0_FT
 
@@ -107,7 +107,7 @@ def register(app: typer.Typer) -> None:
         dt: float = typer.Option(DT_S, parser=real_number, help="RK4 step, s (0 < dt <= 0.05)."),
         throttle: float = typer.Option(0.2, parser=real_number, help="Fixed throttle in [0, 1]."),
         out: Path = typer.Option(Path("runs/simulate"), help="Output directory."),
-        force: bool = typer.Option(False, help="Replace an existing non-empty output directory."),
+        force: bool = force_option(),
         aircraft_name: str | None = None,
     ) -> None:
         """Open-loop simulation with fixed controls: writes trajectory.csv and trajectory.png."""

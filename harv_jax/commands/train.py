@@ -23,7 +23,7 @@ from typing import Any
 
 import typer
 
-from harv_jax.cli_options import aircraft_option, real_number, whole_number
+from harv_jax.cli_options import aircraft_option, force_option, real_number, whole_number
 from harv_jax.errors import UsageError
 from harv_jax.training.run import check_periods, check_run_flags, run_train
 
@@ -119,7 +119,7 @@ def register(app: typer.Typer) -> None:
             "is skipped and kept as *.corrupt); a run stopped before its first checkpoint restarts from "
             "period 0 with its config.json.",
         ),
-        force: bool = typer.Option(False, help="Replace an existing non-empty --out directory."),
+        force: bool = force_option("non-empty --out directory"),
         init_policy: str = typer.Option(
             None,
             help="Start every seed from this policy (shipped:NAME, or a path\\[@seed]): fine-tuning.",
