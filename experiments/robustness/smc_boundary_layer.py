@@ -24,6 +24,7 @@ from harv_jax.control.observer import with_state_observer
 from harv_jax.control.smc import default_gains, make_smc
 from harv_jax.evaluation.disturbance_spec import parse_disturbances
 from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+from harv_jax.evaluation.paired import mean_nr_at_run_s
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 REF = jnp.asarray([ALPHA_TARGET_RAD, 0.0, 0.0])
@@ -55,11 +56,9 @@ def main() -> None:
         row = {"phi": phi, "eso_hz": a.eso_hz}
         for name, inp in inputs.items():
             m = run_mc(ctrl, inp, REF, N_STEPS)[0].metrics
-            rec = np.asarray(m.recovered, bool)
-            t = np.where(rec, np.asarray(m.t_recover_s, np.float64), DURATION_S)
             row[name] = {
-                "rec": float(rec.mean()),
-                "mean_s": float(t.mean()),
+                "rec": float(np.asarray(m.recovered, bool).mean()),
+                "mean_s": mean_nr_at_run_s(m.t_recover_s, m.recovered, DURATION_S),
                 "tv": float(np.asarray(m.control_tv_rad, np.float64).sum(-1).mean()),
                 "chatter": float(np.asarray(m.chatter_index_rad2, np.float64).sum(-1).mean()),
             }

@@ -52,6 +52,16 @@ def times(ctrl, inputs):
     return np.where(rec, np.asarray(m.t_recover_s, np.float64), np.nan), rec, tv
 
 
+def controller(setting: dict[str, float], blend: bool):
+    """The braking SMC of one grid point: ``smc-brake-zoom`` with a blend width (``--blend``: its SMC
+    resets the integral only on steps above SOFT_RESET_TOL_RAD when the width is > 0), else the schedule
+    of ``brake_schedule(**setting)``."""
+    if blend:
+        cfg = SMCConfig(reference_step_tol_rad=SOFT_RESET_TOL_RAD if setting["blend_fps"] > 0 else 0.0)
+        return make_smc_brake(cfg, schedule=zoom_schedule(**setting))
+    return make_smc_brake(schedule=brake_schedule(**setting))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--mc-seed", type=int, default=11)
@@ -64,35 +74,25 @@ def main() -> None:
     t_smc, r_smc, tv_smc = times(make_smc(), inputs)
     smc_mean_s = mean_nr_at_run_s(t_smc, r_smc, DURATION_S)
     if a.blend:
-        rows = [{"controller": "smc", "mean_s": smc_mean_s, "tv_rad": tv_smc}]
-        for width in BLEND_GRID:
-            cfg = SMCConfig(reference_step_tol_rad=SOFT_RESET_TOL_RAD if width > 0 else 0.0)
-            t, r, tv = times(make_smc_brake(cfg, schedule=zoom_schedule(blend_fps=width)), inputs)
-            vs = paired_vs_reference(t, r, t_smc, r_smc, DURATION_S)
-            row = {"blend_fps": width, "recovered": float(r.mean()),
-                   "mean_s": mean_nr_at_run_s(t, r, DURATION_S), "tv_rad": tv, **vs}  # fmt: skip
-            rows.append(row)
-            print(json.dumps(row), flush=True)
-        cmd = f"python experiments/teacher_recipe/brake_grid.py --blend --mc-seed {a.mc_seed} --n {a.n}"
-        a.out.write_text(json.dumps({"command": cmd, "rows": rows}, indent=2) + "\n")
-        return
-    if a.zoom:
+        grid = {"blend_fps": BLEND_GRID}
+    else:
+        grid = ZOOM_GRID if a.zoom else GRID
+    if a.zoom or a.blend:
         rows = [{"controller": "smc", "mean_s": smc_mean_s, "tv_rad": tv_smc}]
     else:
         rows = [{"alpha_brake_rad": None, "v_switch_fps": None, "mean_s": smc_mean_s, "tv_rad": tv_smc}]
-    grid = ZOOM_GRID if a.zoom else GRID
     for values in itertools.product(*grid.values()):
         setting = dict(zip(grid, values, strict=True))
-        t, r, tv = times(make_smc_brake(schedule=brake_schedule(**setting)), inputs)
+        t, r, tv = times(controller(setting, a.blend), inputs)
         vs = paired_vs_reference(t, r, t_smc, r_smc, DURATION_S)
-        if not a.zoom:  # the row's key order of the committed results
+        if not (a.zoom or a.blend):  # the row's key order of the committed results
             setting = {"alpha_brake_rad": setting["alpha_brake_rad"], "v_switch_fps": setting["v_switch_fps"]}
         row = {**setting, "recovered": float(r.mean()),
                "mean_s": mean_nr_at_run_s(t, r, DURATION_S), "tv_rad": tv, **vs}  # fmt: skip
         rows.append(row)
         print(json.dumps(row), flush=True)
-    zoom = " --zoom" if a.zoom else ""
-    cmd = f"python experiments/teacher_recipe/brake_grid.py{zoom} --mc-seed {a.mc_seed} --n {a.n}"
+    flag = " --blend" if a.blend else " --zoom" if a.zoom else ""
+    cmd = f"python experiments/teacher_recipe/brake_grid.py{flag} --mc-seed {a.mc_seed} --n {a.n}"
     a.out.write_text(json.dumps({"command": cmd, "rows": rows}, indent=2) + "\n")
 
 

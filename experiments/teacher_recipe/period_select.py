@@ -24,16 +24,18 @@ import numpy as np
 from harv_jax.aircraft import harv
 from harv_jax.control.registry import ControllerOptions, build_controller
 from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+from harv_jax.evaluation.paired import paired_vs_reference
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 REF = jnp.asarray([ALPHA_TARGET_RAD, 0.0, 0.0])
+RUN_LENGTH_S = 60.0
 
 
-def times(ctrl, inp) -> tuple[np.ndarray, float]:
-    """Per-run recovery times (60 s if not recovered) and the mean control TV, rad."""
+def times(ctrl, inp) -> tuple[tuple[np.ndarray, np.ndarray], float]:
+    """(per-run recovery times, recovered flags) and the mean control TV, rad."""
     m = run_mc(ctrl, inp, REF, 6000)[0].metrics
-    t = np.where(np.asarray(m.recovered, bool), np.asarray(m.t_recover_s, np.float64), 60.0)
-    return t, float(np.asarray(m.control_tv_rad, np.float64).sum(-1).mean())
+    tv_rad = float(np.asarray(m.control_tv_rad, np.float64).sum(-1).mean())
+    return (np.asarray(m.t_recover_s), np.asarray(m.recovered)), tv_rad
 
 
 def rl(path: Path):
@@ -53,16 +55,16 @@ def main() -> None:
         best = None
         for p in periods:
             t, tv = times(rl(run / "policy" / f"period_{p:04d}" / f"policy_seed{s}.npz"), val)
-            slower = float(np.mean(t > smc_val + 1.0))
-            ratio = float(t.mean() / smc_val.mean())
+            vs = paired_vs_reference(*t, *smc_val, RUN_LENGTH_S)
+            slower, ratio = vs["slower_fraction"], vs["mean_ratio"]
             out["val"][f"s{s}p{p}"] = {"slower": slower, "ratio": ratio, "tv": tv}
             print(s, p, "val", round(slower, 3), round(ratio, 3), round(tv, 2), flush=True)
             if best is None or (slower, ratio) < best[0]:
                 best = ((slower, ratio), p)
         for p in sorted({best[1], periods[-1]}):
             t, tv = times(rl(run / "policy" / f"period_{p:04d}" / f"policy_seed{s}.npz"), test)
-            r = {"slower": float(np.mean(t > smc_test + 1.0)), "ratio": float(t.mean() / smc_test.mean()),
-                 "tv": tv, "picked": p == best[1]}  # fmt: skip
+            vs = paired_vs_reference(*t, *smc_test, RUN_LENGTH_S)
+            r = {"slower": vs["slower_fraction"], "ratio": vs["mean_ratio"], "tv": tv, "picked": p == best[1]}
             out["test"][f"s{s}p{p}"] = r
             print(s, p, "test", r, flush=True)
     Path(sys.argv[7]).write_text(json.dumps(out, indent=1))
