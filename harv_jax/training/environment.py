@@ -14,6 +14,7 @@ from harv_jax.training.teacher import (
     TeacherEnv,
     make_teacher_env,
 )
+from harv_jax.training.time_to_go import make_progress_env, progress_settings
 
 
 def make_harv_env(
@@ -24,11 +25,13 @@ def make_harv_env(
     ``env_table`` holds the ``[env]`` fields and the nested ``reward``/``randomization``/``spin``/``eval``
     tables (``harv_jax.env.settings``), and optionally ``loop`` (``harv_jax.training.in_loop``: with
     ``hybrid:<schedule>`` the env applies the hybrid law inside its step) or ``teacher`` (a registry
-    controller whose action labels every step: ``harv_jax.training.teacher``). With spin resets on
+    controller whose action labels every step: ``harv_jax.training.teacher``), and ``time_to_go`` (a progress
+    reward: ``harv_jax.training.time_to_go``). With spin resets on
     (``spin.reset_prob`` > 0) the spin bank is ``spin_bank`` or, if None, made here from the ``[spin]`` table.
     """
     teacher = teacher_name(env_table)
     model = teacher_model(env_table)
+    progress = progress_settings(env_table)
     loop, env_table = split_loop(env_table)
     settings.check_env_settings(env_table)  # every table, before the spin bank is made
     flat, nested = settings.split_tables(env_table)
@@ -36,6 +39,8 @@ def make_harv_env(
     if spin_bank is None:
         spin_bank = settings.build_spin_bank(env_config, nested)
     env = make_env(env_config)
+    if progress is not None:
+        env = make_progress_env(env, *progress)
     if loop != "none":
         env = make_in_loop_env(env, loop.removeprefix("hybrid:"))
     if teacher is not None:

@@ -28,6 +28,7 @@ from harv_jax.env import Env, EnvState
 from harv_jax.env.recovery import with_auto_reset
 from harv_jax.errors import UsageError
 from harv_jax.task.spaces import command_to_action
+from harv_jax.training import time_to_go
 
 #: Loops a policy can be trained in: ``none`` (the plain env) or ``hybrid:<schedule>``.
 LOOPS: tuple[str, ...] = ("none",) + tuple(f"hybrid:{s}" for s in ZETA_SCHEDULES)
@@ -52,7 +53,7 @@ def parse_loop(text: str) -> str:
 
 
 #: Keys of a run's env settings that choose a wrapper of the env, not a setting of it.
-WRAPPER_KEYS = (LOOP_KEY, "teacher", "teacher_model")
+WRAPPER_KEYS = (LOOP_KEY, "teacher", "teacher_model", *time_to_go.KEYS)
 
 
 def split_loop(env_table: dict[str, Any]) -> tuple[str, dict[str, Any]]:

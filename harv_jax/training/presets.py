@@ -5,7 +5,8 @@ A preset file has a ``[ppo]`` table (fields of :class:`~harv_jax.ppo.config.PPOC
 ``[spin]`` and ``[eval]`` tables, returned nested inside the env settings (``harv_jax.env.settings``
 validates them). A preset is named by its file name without ``.toml`` (``smoke``, ``paper-partial``,
 ``paper-full``, ``recovery``) or given as a path to a ``.toml`` file. A relative ``[ppo] demos`` path
-(:mod:`harv_jax.training.demos`) is taken from the preset file's folder.
+(:mod:`harv_jax.training.demos`) or ``[env] time_to_go`` file (:mod:`harv_jax.training.time_to_go`) is
+taken from the preset file's folder.
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ PRESET_DIR: Traversable = importlib.resources.files("harv_jax.training") / "pres
 NESTED_TABLES = ("reward", "randomization", "spin", "eval")
 #: Name of the preset used when none is given.
 DEFAULT_PRESET = "teacher"
+#: The env key of a progress reward's file (= ``harv_jax.training.time_to_go.FILE_KEY``, a jax module).
+TIME_TO_GO_KEY = "time_to_go"
 
 
 def _preset_files() -> dict[str, Traversable]:
@@ -86,6 +89,10 @@ def load_preset(name: str, check_env: bool = True) -> tuple[PPOConfig, dict[str,
 
         cfg = cfg.replace(demos=resolve_demos_path(cfg.demos, Path(str(path)).parent))
     env = dict(tables.get("env", {}))
+    if isinstance(env.get(TIME_TO_GO_KEY), str):  # the preset folder's, as [ppo] demos
+        from harv_jax.training.demos import resolve_demos_path
+
+        env[TIME_TO_GO_KEY] = resolve_demos_path(env[TIME_TO_GO_KEY], Path(str(path)).parent)
     for table in NESTED_TABLES:  # stored inside the env settings (checkpoints keep them for --resume)
         if table in tables:
             env[table] = dict(tables[table])
