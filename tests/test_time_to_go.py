@@ -3,6 +3,7 @@ round trip and validation, the fit, and bad settings (one line, exit 2, no run f
 
 from __future__ import annotations
 
+import hashlib
 import re
 from pathlib import Path
 
@@ -51,8 +52,9 @@ def test_progress_term_is_w_times_the_time_gained_and_zero_on_termination(tmp_pa
     key = jax.random.key(0)
     _, state = env.reset(key, params)
     action = jnp.asarray([0.1, -0.2, 0.3], jnp.float32)
-    _, new, reward, terminated, _, info = env.step_no_reset(key, state, action, params)
-    _, pnew, preward, _, _, _ = plain.step_no_reset(key, state, action, params)
+    step = jax.jit(env.step_no_reset)
+    _, new, reward, terminated, _, info = step(key, state, action, params)
+    _, pnew, preward, _, _, _ = jax.jit(plain.step_no_reset)(key, state, action, params)
     assert not bool(terminated)
     t0 = max(4.0 * (float(state.wind[0]) - 600.0) / 300.0 + 2.0, 0.0)
     t1 = max(4.0 * (float(new.wind[0]) - 600.0) / 300.0 + 2.0, 0.0)
@@ -60,7 +62,7 @@ def test_progress_term_is_w_times_the_time_gained_and_zero_on_termination(tmp_pa
     np.testing.assert_allclose(float(reward), float(preward) + 50.0 * (t0 - 0.9 * t1), rtol=1e-5)
     np.testing.assert_array_equal(np.asarray(new.wind), np.asarray(pnew.wind))  # the flight is the same
     # a state outside the envelope terminates: the term is 0 there
-    _, _, _, term, _, info = env.step_no_reset(key, state.replace(aircraft=_far(state)), action, params)
+    _, _, _, term, _, info = step(key, state.replace(aircraft=_far(state)), action, params)
     assert bool(term) and float(info["time_to_go_reward"]) == 0.0
 
 
@@ -74,7 +76,7 @@ def test_with_a_teacher_the_labels_stay_and_the_reward_gains_the_term(tmp_path):
     env, params = make_harv_env({**SMALL_ENV, "teacher": "smc", "time_to_go": path})
     key = jax.random.key(1)
     _, state = env.reset(key, params)
-    _, _, _, _, info = env.step(key, state, jnp.zeros(3, jnp.float32), params)
+    _, _, _, _, info = jax.jit(env.step)(key, state, jnp.zeros(3, jnp.float32), params)
     assert info["teacher_action"].shape == (3,) and "time_to_go_reward" in info
 
 
@@ -173,3 +175,16 @@ def test_a_presets_relative_file_is_its_folders(tmp_path, monkeypatch):
     _, env = load_preset("sub/p.toml")
     assert env["time_to_go"] == str(tmp_path / "sub" / "t.npz")
     make_harv_env({**env, **SMALL_ENV})  # the file is found from another working folder
+
+
+def test_a_run_pins_the_files_digest_and_a_changed_file_is_refused(tmp_path):
+    path = _file(tmp_path, _linear_net(1.0, 0.0))
+    table = ttg.pin_file_digest({"time_to_go": str(path)})
+    assert table["time_to_go_sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
+    assert ttg.pin_file_digest(table) == table and ttg.pin_file_digest({}) == {}
+    assert ttg.progress_settings(table) is not None
+    ttg.save(path, _linear_net(2.0, 0.0), {})  # the file changes under the run
+    with pytest.raises(UsageError, match="SHA-256 .*, the run recorded .*; restore that file or start a new"):
+        ttg.progress_settings(table)
+    with pytest.raises(UsageError, match="time_to_go_sha256 given without a time-to-go file"):
+        ttg.progress_settings({"time_to_go_sha256": "ab"})

@@ -105,6 +105,7 @@ def run_train(
     from harv_jax.outdir import check_out_dir
     from harv_jax.ppo import checkpoint
     from harv_jax.ppo import config as ppo_config
+    from harv_jax.training import time_to_go
     from harv_jax.training.in_loop import LOOP_KEY, parse_loop, split_loop
     from harv_jax.training.presets import DEFAULT_PRESET, build_config
     from harv_jax.training.resume import resume_plan
@@ -141,6 +142,7 @@ def run_train(
         if in_loop is not None:
             env_table = {**env_table, LOOP_KEY: parse_loop(in_loop)}
         env_table = {**env_table, "aircraft": aircraft or env_table.get("aircraft", DEFAULT_AIRCRAFT)}
+        env_table = time_to_go.pin_file_digest(env_table)  # --resume refuses the file if it changes
         check_out_dir(out, force)  # a bad --out fails before the env is built
     loop = split_loop(env_table)[0]
 

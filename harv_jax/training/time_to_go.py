@@ -17,11 +17,13 @@ In a preset::
 
 The file is a plain ``.npz`` (read with ``allow_pickle=False``: loading never executes code) holding the
 layers ``w0, b0, w1, b1, ...`` (tanh between them, a linear output) and ``format``/``version`` fields; shapes
-and finiteness are validated on load.
+and finiteness are validated on load. A run records the file's SHA-256 (``time_to_go_sha256``) when it starts;
+``--resume`` refuses the file if it has changed since.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from pathlib import Path
@@ -37,9 +39,11 @@ from harv_jax.dynamics.state import WIND_INDEX
 from harv_jax.env.recovery import Env, with_auto_reset
 from harv_jax.errors import UsageError
 
-#: Keys of a run's env settings that add the progress reward (absent: none).
+#: Keys of a run's env settings that add the progress reward (absent: none); a run records the file's SHA-256
+#: under ``SHA_KEY`` when it starts, and ``--resume`` refuses a file that has changed since.
 FILE_KEY, WEIGHT_KEY, DISCOUNT_KEY = "time_to_go", "time_to_go_weight", "time_to_go_discount"
-KEYS = (FILE_KEY, WEIGHT_KEY, DISCOUNT_KEY)
+SHA_KEY = "time_to_go_sha256"
+KEYS = (FILE_KEY, WEIGHT_KEY, DISCOUNT_KEY, SHA_KEY)
 FORMAT, VERSION = "harv-jax time-to-go", 1
 #: The network's inputs, each a function of the wind-axis state (scaled to order one).
 FEATURE_NAMES = (
@@ -164,10 +168,25 @@ def load(path: str | Path) -> TimeToGoNet:
     return TimeToGoNet(tuple(layers))
 
 
+def _sha256(path: str | Path) -> str | None:
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def pin_file_digest(env_table: dict[str, Any]) -> dict[str, Any]:
+    """``env_table`` with the SHA-256 of its time-to-go file under ``SHA_KEY`` (as it is without a readable
+    file, or with a digest already given)."""
+    path = env_table.get(FILE_KEY)
+    digest = _sha256(path) if isinstance(path, str) and SHA_KEY not in env_table else None
+    return env_table if digest is None else {**env_table, SHA_KEY: digest}
+
+
 def progress_settings(env_table: dict[str, Any]) -> tuple[TimeToGoNet, float, float] | None:
     """(net, weight_per_s, discount) of a run's env settings, or None without ``time_to_go``; UsageError
-    naming a bad value."""
-    extra = [k for k in (WEIGHT_KEY, DISCOUNT_KEY) if k in env_table and FILE_KEY not in env_table]
+    naming a bad value, or a file whose SHA-256 is not the one recorded under ``SHA_KEY``."""
+    extra = [k for k in (WEIGHT_KEY, DISCOUNT_KEY, SHA_KEY) if k in env_table and FILE_KEY not in env_table]
     if extra:
         raise UsageError(f"[env] {extra[0]} given without a time-to-go file; set [env] {FILE_KEY} too")
     if FILE_KEY not in env_table:
@@ -181,6 +200,12 @@ def progress_settings(env_table: dict[str, Any]) -> tuple[TimeToGoNet, float, fl
         net = load(env_table[FILE_KEY])
     except ValueError as e:
         raise UsageError(f"[env] {FILE_KEY}: {e}") from None
+    pinned, digest = env_table.get(SHA_KEY), _sha256(env_table[FILE_KEY])
+    if pinned is not None and pinned != digest:
+        raise UsageError(
+            f"[env] {FILE_KEY}: {str(env_table[FILE_KEY])!r} has SHA-256 {digest}, the run recorded "
+            f"{pinned!r}; restore that file or start a new run"
+        )
     return net, float(weight), float(discount)
 
 
