@@ -106,6 +106,8 @@ def test_fit_learns_a_known_time_to_go():
     [
         (b"not an npz", "cannot be read as .npz"),
         ("format", "is not a 'harv-jax time-to-go' file of version 1"),
+        ("version", "is not a 'harv-jax time-to-go' file of version 1"),
+        ("text_layer", "layer 0 is not a finite [10, n] matrix + [n]"),
         ("nan", "layer 0 is not a finite [10, n] matrix + [n]"),
         ("shape", "layer 0 is not a finite [10, n] matrix + [n]"),
         ("two_outputs", "the layers must end in one output"),
@@ -119,6 +121,8 @@ def test_a_bad_file_is_one_line(tmp_path, content, message):
     else:
         bad = {
             "format": {**good, "format": np.str_("other")},
+            "version": {**good, "version": np.str_("one")},
+            "text_layer": {**good, "w0": np.full((10, 1), "x")},
             "nan": {**good, "w0": np.full((10, 1), np.nan)},
             "shape": {**good, "w0": np.ones((9, 1))},
             "two_outputs": {**good, "w0": np.ones((10, 2)), "b0": np.zeros(2)},
@@ -136,6 +140,8 @@ def test_settings_are_checked(tmp_path):
     assert (w, g) == (100.0, 1.0) and len(net.layers) == 1
     with pytest.raises(UsageError, match="time_to_go_weight given without a time-to-go file"):
         ttg.progress_settings({"time_to_go_weight": 3.0})
+    with pytest.raises(UsageError, match="time_to_go 3; allowed: the path of a time-to-go .npz file"):
+        ttg.progress_settings({"time_to_go": 3})
     for key, bad in (("time_to_go_weight", -1.0), ("time_to_go_weight", "x"), ("time_to_go_discount", 1.5)):
         with pytest.raises(UsageError, match=f"{key} .*; allowed: a number in"):
             ttg.progress_settings({"time_to_go": path, key: bad})

@@ -151,12 +151,15 @@ def load(path: str | Path) -> TimeToGoNet:
             data = {k: z[k] for k in z.files}
     except (OSError, ValueError, EOFError) as e:
         raise ValueError(f"time-to-go file {str(path)!r} cannot be read as .npz: {e}") from None
-    if str(data.get("format", "")) != FORMAT or int(data.get("version", -1)) != VERSION:
+    version = data.get("version")
+    versioned = version is not None and version.shape == () and version.dtype.kind in "iu"
+    if str(data.get("format", "")) != FORMAT or not versioned or int(version) != VERSION:
         raise ValueError(f"time-to-go file {str(path)!r} is not a {FORMAT!r} file of version {VERSION}")
     layers, n_in = [], len(FEATURE_NAMES)
     for j in range(sum(k.startswith("w") for k in data)):
         w, b = data.get(f"w{j}"), data.get(f"b{j}")
-        ok = w is not None and b is not None and w.ndim == 2 and w.shape[0] == n_in and b.shape == w.shape[1:]
+        ok = w is not None and b is not None and w.dtype.kind == b.dtype.kind == "f"
+        ok = ok and w.ndim == 2 and w.shape[0] == n_in and b.shape == w.shape[1:]
         if not ok or not (np.all(np.isfinite(w)) and np.all(np.isfinite(b))):
             raise ValueError(
                 f"time-to-go file {str(path)!r}: layer {j} is not a finite [{n_in}, n] matrix + [n]"
@@ -191,6 +194,10 @@ def progress_settings(env_table: dict[str, Any]) -> tuple[TimeToGoNet, float, fl
         raise UsageError(f"[env] {extra[0]} given without a time-to-go file; set [env] {FILE_KEY} too")
     if FILE_KEY not in env_table:
         return None
+    if not isinstance(env_table[FILE_KEY], str):
+        raise UsageError(
+            f"[env] {FILE_KEY} {env_table[FILE_KEY]!r}; allowed: the path of a time-to-go .npz file"
+        )
     weight, discount = env_table.get(WEIGHT_KEY, 100.0), env_table.get(DISCOUNT_KEY, 1.0)
     for name, value, high in ((WEIGHT_KEY, weight, MAX_WEIGHT_PER_S), (DISCOUNT_KEY, discount, 1.0)):
         number = isinstance(value, (int, float)) and not isinstance(value, bool)
