@@ -25,6 +25,7 @@ import numpy as np
 from harv_jax.aircraft import harv
 from harv_jax.control.registry import ControllerOptions, build_controller
 from harv_jax.evaluation.closed_loop import closed_loop
+from harv_jax.evaluation.metrics import settle_time_s
 from harv_jax.evaluation.monte_carlo import sample_mc_inputs
 from harv_jax.task.criteria import default_criterion, recovered_mask
 from harv_jax.task.spec import ALPHA_TARGET_RAD
@@ -50,11 +51,10 @@ def teacher_flights(name: str, mc_seed: int, n: int) -> tuple[np.ndarray, np.nda
 
 def labels(ok: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(time to go [n, T] s, sample used [n, T], run recovered [n]) from the per-sample criterion."""
-    n, t_len = ok.shape
     recovered = ok[:, -HOLD_SAMPLES:].all(axis=1)
-    last_out = np.where((~ok).any(axis=1), t_len - 1 - np.argmax((~ok)[:, ::-1], axis=1), -1)
-    t_rec = (last_out + 1) * SAMPLE_S
-    t = np.arange(t_len) * SAMPLE_S
+    # samples from which the criterion holds to the end (NaN: not at the end), in seconds
+    t_rec = np.asarray(jax.vmap(settle_time_s, in_axes=(0, None))(jnp.asarray(ok), 1.0), float) * SAMPLE_S
+    t = np.arange(ok.shape[1]) * SAMPLE_S
     used = recovered[:, None] & (t[None] <= t_rec[:, None] + PAST_RECOVERY_S)
     return np.maximum(t_rec[:, None] - t[None], 0.0), used, recovered
 
