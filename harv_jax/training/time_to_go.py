@@ -24,6 +24,7 @@ and finiteness are validated on load. A run records the file's SHA-256 (``time_t
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import math
 from pathlib import Path
@@ -146,8 +147,15 @@ def save(path: Path, net: TimeToGoNet, about: dict[str, Any]) -> None:
 
 def load(path: str | Path) -> TimeToGoNet:
     """Read and validate a time-to-go file (``allow_pickle=False``); ValueError naming what is wrong."""
+    return load_with_digest(path)[0]
+
+
+def load_with_digest(path: str | Path) -> tuple[TimeToGoNet, str]:
+    """(net, SHA-256 hex digest of the file's bytes): the file is read once, then parsed from memory
+    (``allow_pickle=False``) and validated; ValueError naming what is wrong."""
     try:
-        with np.load(path, allow_pickle=False) as z:
+        raw = Path(path).read_bytes()
+        with np.load(io.BytesIO(raw), allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
     except (OSError, ValueError, EOFError) as e:
         raise ValueError(f"time-to-go file {str(path)!r} cannot be read as .npz: {e}") from None
@@ -168,22 +176,20 @@ def load(path: str | Path) -> TimeToGoNet:
         n_in = w.shape[1]
     if not layers or n_in != 1:
         raise ValueError(f"time-to-go file {str(path)!r}: the layers must end in one output")
-    return TimeToGoNet(tuple(layers))
-
-
-def _sha256(path: str | Path) -> str | None:
-    try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-    except OSError:
-        return None
+    return TimeToGoNet(tuple(layers)), hashlib.sha256(raw).hexdigest()
 
 
 def pin_file_digest(env_table: dict[str, Any]) -> dict[str, Any]:
     """``env_table`` with the SHA-256 of its time-to-go file under ``SHA_KEY`` (as it is without a readable
     file, or with a digest already given)."""
     path = env_table.get(FILE_KEY)
-    digest = _sha256(path) if isinstance(path, str) and SHA_KEY not in env_table else None
-    return env_table if digest is None else {**env_table, SHA_KEY: digest}
+    if not isinstance(path, str) or SHA_KEY in env_table:
+        return env_table
+    try:
+        digest = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return env_table  # progress_settings names the unreadable file
+    return {**env_table, SHA_KEY: digest}
 
 
 def progress_settings(env_table: dict[str, Any]) -> tuple[TimeToGoNet, float, float] | None:
@@ -204,10 +210,10 @@ def progress_settings(env_table: dict[str, Any]) -> tuple[TimeToGoNet, float, fl
         if not number or not 0.0 <= value <= high:
             raise UsageError(f"[env] {name} {value!r}; allowed: a number in [0, {high:g}]")
     try:
-        net = load(env_table[FILE_KEY])
+        net, digest = load_with_digest(env_table[FILE_KEY])
     except ValueError as e:
         raise UsageError(f"[env] {FILE_KEY}: {e}") from None
-    pinned, digest = env_table.get(SHA_KEY), _sha256(env_table[FILE_KEY])
+    pinned = env_table.get(SHA_KEY)
     if pinned is not None and pinned != digest:
         raise UsageError(
             f"[env] {FILE_KEY}: {str(env_table[FILE_KEY])!r} has SHA-256 {digest}, the run recorded "
