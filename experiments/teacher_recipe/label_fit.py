@@ -1,0 +1,194 @@
+"""How well can the teacher's labels be fitted from the observations? A diagnostic of the cloning error.
+
+A run's env (its stored settings, the teacher riding along) is flown by one of the run's policies (its
+Gaussian mean) from ``--envs`` resets of draw seed ``--draw-seed`` for ``--steps`` steps; an episode's samples
+end at its termination. On those states it reports, per channel (the env's action order), the squared error
+between the policy's action and the teacher's label, the share of labels at a bound (|a| > 0.99) and of label
+switches (a label moving by > 0.5 in one step), and the error of a fresh network of the policy's width fitted
+offline to the same (observation, label) pairs (Adam, ``--fit-steps`` steps of 4096 samples, on the first 80%
+of the envs; scored on both parts). With ``--finetune-out`` the policy's own actor is fitted the same way (its
+observation statistics kept) and written as a policy file: one round of DAgger with the whole round's data
+aggregated, which ``harv-jax mc`` can fly.
+
+    python experiments/teacher_recipe/label_fit.py runs/tuning_v48_teacher_zoom_wide_dagger_seed7 --seed 0 \\
+        --envs 2048 --steps 1000 --finetune-out runs/v48_seed0_refit.npz --out label_fit.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from harv_jax import policy as policy_io
+from harv_jax.ppo import normalize as obs_norm
+from harv_jax.ppo.checkpoint import stored_configs
+from harv_jax.training.environment import make_harv_env
+
+
+def fly(run: Path, seed: int, envs: int, steps: int, draw_seed: int, nominal: bool) -> dict[str, np.ndarray]:
+    """Observations, policy actions, teacher labels and the alive mask [envs, steps, ...]."""
+    cfg, env_table = stored_configs(run)
+    if nominal:
+        env_table = {**env_table, "domain_randomization": False}
+    env, params = make_harv_env(env_table)
+    pol = policy_io.load(run / "policy" / f"policy_seed{seed}.npz")
+    keys = jax.random.split(jax.random.key(draw_seed), envs)
+
+    def one(key):
+        obs, state = env.reset(key, params)
+
+        def body(carry, k):
+            obs, state, alive = carry
+            a = pol.deterministic(obs)
+            obs2, state2, _, term, trunc, info = env.step_no_reset(k, state, a, params)
+            out = (obs, a, info["teacher_action"], alive)
+            alive2 = alive & ~term & ~trunc
+            return (obs2, state2, alive2), out
+
+        _, out = jax.lax.scan(body, (obs, state, jnp.bool_(True)), jax.random.split(key, steps))
+        return out
+
+    obs, act, lab, alive = jax.jit(jax.vmap(one))(keys)
+    return {
+        "obs": np.asarray(obs),
+        "act": np.asarray(act),
+        "lab": np.asarray(lab),
+        "alive": np.asarray(alive),
+    }
+
+
+class MLP(nn.Module):
+    hidden: tuple[int, ...]
+    out: int
+
+    @nn.compact
+    def __call__(self, x):
+        for h in self.hidden:
+            x = nn.tanh(nn.Dense(h)(x))
+        return nn.Dense(self.out)(x)
+
+
+def offline_fit(obs, lab, alive, hidden, steps: int, seed: int = 0) -> dict[str, list[float]]:
+    """Fit clip(MLP(obs)) to the labels on the first 80% of the envs; per-channel squared errors of both."""
+    n_train = int(0.8 * obs.shape[0])
+    part = lambda a, s: a[s].reshape(-1, a.shape[-1])[alive[s].reshape(-1)]  # noqa: E731
+    tr, te = slice(0, n_train), slice(n_train, None)
+    x_tr, y_tr, x_te, y_te = part(obs, tr), part(lab, tr), part(obs, te), part(lab, te)
+    mu, sd = x_tr.mean(0), x_tr.std(0) + 1e-6
+    x_tr, x_te = jnp.asarray((x_tr - mu) / sd), (x_te - mu) / sd
+    y_tr = jnp.asarray(y_tr)
+    net = MLP(tuple(hidden), y_tr.shape[-1])
+    p = net.init(jax.random.key(seed), x_tr[:1])
+    sched = optax.cosine_decay_schedule(1e-3, steps)
+    opt = optax.adam(sched)
+    st = opt.init(p)
+
+    def loss(p, x, y):
+        return jnp.mean(jnp.sum((jnp.clip(net.apply(p, x), -1, 1) - y) ** 2, -1))
+
+    @jax.jit
+    def update(p, st, k):
+        i = jax.random.randint(k, (4096,), 0, x_tr.shape[0])
+        g = jax.grad(loss)(p, x_tr[i], y_tr[i])
+        u, st = opt.update(g, st)
+        return optax.apply_updates(p, u), st
+
+    for k in jax.random.split(jax.random.key(seed + 1), steps):
+        p, st = update(p, st, k)
+    err = lambda x, y: np.mean((np.clip(np.asarray(net.apply(p, x)), -1, 1) - np.asarray(y)) ** 2, 0).tolist()  # noqa: E731
+    return {"train": err(x_tr, y_tr), "test": err(x_te, y_te)}
+
+
+def finetune(pol, obs, lab, alive, steps: int, lr: float, seed: int = 0):
+    """The policy's own actor fitted further to the labels (train split), as a Policy; per-channel errors."""
+    n_train = int(0.8 * obs.shape[0])
+    part = lambda a, s: a[s].reshape(-1, a.shape[-1])[alive[s].reshape(-1)]  # noqa: E731
+    tr, te = slice(0, n_train), slice(n_train, None)
+    x_tr, y_tr = jnp.asarray(part(obs, tr)), jnp.asarray(part(lab, tr))
+    x_te, y_te = jnp.asarray(part(obs, te)), np.asarray(part(lab, te))
+    norm = lambda x: obs_norm.normalize(pol.normalizer, x)  # noqa: E731
+    mean_of = lambda pp, x: pol.networks.policy(pol.params._replace(policy=pp), norm(x))[0]  # noqa: E731
+    opt = optax.adam(optax.cosine_decay_schedule(lr, steps))
+    pp, st = pol.params.policy, None
+    st = opt.init(pp)
+
+    @jax.jit
+    def update(pp, st, k):
+        i = jax.random.randint(k, (4096,), 0, x_tr.shape[0])
+        g = jax.grad(lambda q: jnp.mean(jnp.sum((jnp.clip(mean_of(q, x_tr[i]), -1, 1) - y_tr[i]) ** 2, -1)))(
+            pp
+        )
+        u, st = opt.update(g, st)
+        return optax.apply_updates(pp, u), st
+
+    for k in jax.random.split(jax.random.key(seed + 2), steps):
+        pp, st = update(pp, st, k)
+    err = lambda x, y: np.mean((np.clip(np.asarray(mean_of(pp, x)), -1, 1) - np.asarray(y)) ** 2, 0).tolist()  # noqa: E731
+    new = policy_io.make_policy(pol.params._replace(policy=pp), pol.normalizer, pol.networks, meta=pol.meta)
+    return new, {"train": err(x_tr, y_tr), "test": err(x_te, y_te)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("run", type=Path)
+    ap.add_argument("--seed", type=int, default=0, help="which of the run's policies flies")
+    ap.add_argument("--envs", type=int, default=256)
+    ap.add_argument("--steps", type=int, default=2000, help="env steps per env (20 s)")
+    ap.add_argument("--draw-seed", type=int, default=77, help="reset draws (no evaluation uses 77)")
+    ap.add_argument("--fit-steps", type=int, default=20000)
+    ap.add_argument("--nominal", action="store_true", help="fly the nominal aircraft (no randomization)")
+    ap.add_argument(
+        "--finetune-out", type=Path, help="also fit the policy's own actor offline; write it here"
+    )
+    ap.add_argument("--finetune-lr", type=float, default=3e-4)
+    ap.add_argument("--skip-fresh", action="store_true", help="no fresh-network fit (only --finetune-out)")
+    ap.add_argument("--out", type=Path, required=True)
+    a = ap.parse_args()
+    d = fly(a.run, a.seed, a.envs, a.steps, a.draw_seed, a.nominal)
+    m = d["alive"]
+    act, lab = d["act"][m], d["lab"][m]
+    switch = np.abs(np.diff(d["lab"], axis=1)) > 0.5
+    switch = np.concatenate([np.zeros_like(switch[:, :1]), switch], axis=1)[m]
+    err = (act - lab) ** 2
+    hidden = json.loads((a.run / "config.json").read_text())["ppo"]["hidden_sizes"]
+    res = {
+        "run": str(a.run),
+        "policy_seed": a.seed,
+        "envs": a.envs,
+        "steps": a.steps,
+        "draw_seed": a.draw_seed,
+        "nominal_aircraft": a.nominal,
+        "samples": int(m.sum()),
+        "policy_sq_error_per_channel": err.mean(0).tolist(),
+        "label_at_bound_share_per_channel": (np.abs(lab) > 0.99).mean(0).tolist(),
+        "label_switch_share_per_channel": switch.mean(0).tolist(),
+        "policy_sq_error_share_on_switch_steps": (err * switch).sum(0) / np.maximum(err.sum(0), 1e-12),
+        "offline_fit_hidden": hidden,
+        "offline_fit_steps": a.fit_steps,
+    }
+    if not a.skip_fresh:
+        res["offline_fit_sq_error_per_channel"] = offline_fit(
+            d["obs"], d["lab"], d["alive"], hidden, a.fit_steps
+        )
+    if a.finetune_out is not None:
+        pol = policy_io.load(a.run / "policy" / f"policy_seed{a.seed}.npz")
+        new, fit_err = finetune(pol, d["obs"], d["lab"], d["alive"], a.fit_steps, a.finetune_lr)
+        policy_io.export_npz(a.finetune_out, new)
+        res["finetune_out"] = str(a.finetune_out)
+        res["finetune_lr"] = a.finetune_lr
+        res["finetune_sq_error_per_channel"] = fit_err
+    res["policy_sq_error_share_on_switch_steps"] = res["policy_sq_error_share_on_switch_steps"].tolist()
+    a.out.parent.mkdir(parents=True, exist_ok=True)
+    a.out.write_text(json.dumps(res, indent=1))
+    print(json.dumps(res, indent=1))
+
+
+if __name__ == "__main__":
+    main()
