@@ -116,7 +116,7 @@ def finetune(pol, obs, lab, alive, steps: int, lr: float, seed: int = 0):
     norm = lambda x: obs_norm.normalize(pol.normalizer, x)  # noqa: E731
     mean_of = lambda pp, x: pol.networks.policy(pol.params._replace(policy=pp), norm(x))[0]  # noqa: E731
     opt = optax.adam(optax.cosine_decay_schedule(lr, steps))
-    pp, st = pol.params.policy, None
+    pp = pol.params.policy
     st = opt.init(pp)
 
     @jax.jit
@@ -169,7 +169,9 @@ def main() -> None:
         "policy_sq_error_per_channel": err.mean(0).tolist(),
         "label_at_bound_share_per_channel": (np.abs(lab) > 0.99).mean(0).tolist(),
         "label_switch_share_per_channel": switch.mean(0).tolist(),
-        "policy_sq_error_share_on_switch_steps": (err * switch).sum(0) / np.maximum(err.sum(0), 1e-12),
+        "policy_sq_error_share_on_switch_steps": (
+            (err * switch).sum(0) / np.maximum(err.sum(0), 1e-12)
+        ).tolist(),
         "offline_fit_hidden": hidden,
         "offline_fit_steps": a.fit_steps,
     }
@@ -184,7 +186,6 @@ def main() -> None:
         res["finetune_out"] = str(a.finetune_out)
         res["finetune_lr"] = a.finetune_lr
         res["finetune_sq_error_per_channel"] = fit_err
-    res["policy_sq_error_share_on_switch_steps"] = res["policy_sq_error_share_on_switch_steps"].tolist()
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text(json.dumps(res, indent=1))
     print(json.dumps(res, indent=1))
