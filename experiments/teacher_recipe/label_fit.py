@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import Any
 
 import flax.linen as nn
 import jax
@@ -32,8 +33,9 @@ from harv_jax.ppo.checkpoint import stored_configs
 from harv_jax.training.environment import make_harv_env
 
 
-def fly(run: Path, seed: int, envs: int, steps: int, draw_seed: int, nominal: bool) -> dict[str, np.ndarray]:
-    """Observations, policy actions, teacher labels and the alive mask [envs, steps, ...]."""
+def fly(run: Path, seed: int, envs: int, steps: int, draw_seed: int, nominal: bool) -> tuple[dict, Any, list]:
+    """(observations, policy actions, teacher labels and the alive mask [envs, steps, ...]; the policy; the
+    run's hidden widths)."""
     cfg, env_table = stored_configs(run)
     if nominal:
         env_table = {**env_table, "domain_randomization": False}
@@ -56,12 +58,13 @@ def fly(run: Path, seed: int, envs: int, steps: int, draw_seed: int, nominal: bo
         return out
 
     obs, act, lab, alive = jax.jit(jax.vmap(one))(keys)
-    return {
+    data = {
         "obs": np.asarray(obs),
         "act": np.asarray(act),
         "lab": np.asarray(lab),
         "alive": np.asarray(alive),
     }
+    return data, pol, list(cfg.hidden_sizes)
 
 
 class MLP(nn.Module):
@@ -75,64 +78,62 @@ class MLP(nn.Module):
         return nn.Dense(self.out)(x)
 
 
-def offline_fit(obs, lab, alive, hidden, steps: int, seed: int = 0) -> dict[str, list[float]]:
-    """Fit clip(MLP(obs)) to the labels on the first 80% of the envs; per-channel squared errors of both."""
-    n_train = int(0.8 * obs.shape[0])
-    part = lambda a, s: a[s].reshape(-1, a.shape[-1])[alive[s].reshape(-1)]  # noqa: E731
-    tr, te = slice(0, n_train), slice(n_train, None)
-    x_tr, y_tr, x_te, y_te = part(obs, tr), part(lab, tr), part(obs, te), part(lab, te)
-    mu, sd = x_tr.mean(0), x_tr.std(0) + 1e-6
-    x_tr, x_te = jnp.asarray((x_tr - mu) / sd), (x_te - mu) / sd
-    y_tr = jnp.asarray(y_tr)
-    net = MLP(tuple(hidden), y_tr.shape[-1])
-    p = net.init(jax.random.key(seed), x_tr[:1])
-    sched = optax.cosine_decay_schedule(1e-3, steps)
-    opt = optax.adam(sched)
-    st = opt.init(p)
+def split(d: dict, key: str) -> tuple[np.ndarray, np.ndarray]:
+    """The alive samples of ``d[key]``: (the first 80% of the envs, the rest), each [samples, ...]."""
+    n_train = int(0.8 * d[key].shape[0])
+    part = lambda s: d[key][s].reshape(-1, d[key].shape[-1])[d["alive"][s].reshape(-1)]  # noqa: E731
+    return part(slice(0, n_train)), part(slice(n_train, None))
+
+
+def fit(apply_fn, params, x_tr, y_tr, steps: int, lr: float, key: jax.Array):
+    """Adam (cosine decay from ``lr``), ``steps`` minibatches of 4096: mean over samples of
+    sum_channels (clip(apply_fn(params, x), -1, 1) - y)^2."""
+    x_tr, y_tr = jnp.asarray(x_tr), jnp.asarray(y_tr)
+    opt = optax.adam(optax.cosine_decay_schedule(lr, steps))
+    st = opt.init(params)
 
     def loss(p, x, y):
-        return jnp.mean(jnp.sum((jnp.clip(net.apply(p, x), -1, 1) - y) ** 2, -1))
+        return jnp.mean(jnp.sum((jnp.clip(apply_fn(p, x), -1, 1) - y) ** 2, -1))
 
     @jax.jit
     def update(p, st, k):
         i = jax.random.randint(k, (4096,), 0, x_tr.shape[0])
-        g = jax.grad(loss)(p, x_tr[i], y_tr[i])
-        u, st = opt.update(g, st)
+        u, st = opt.update(jax.grad(loss)(p, x_tr[i], y_tr[i]), st)
         return optax.apply_updates(p, u), st
 
-    for k in jax.random.split(jax.random.key(seed + 1), steps):
-        p, st = update(p, st, k)
-    err = lambda x, y: np.mean((np.clip(np.asarray(net.apply(p, x)), -1, 1) - np.asarray(y)) ** 2, 0).tolist()  # noqa: E731
+    for k in jax.random.split(key, steps):
+        params, st = update(params, st, k)
+    return params
+
+
+def channel_errors(apply_fn, params, x_tr, y_tr, x_te, y_te) -> dict[str, list[float]]:
+    """Per-channel mean squared error of clip(apply_fn(params, x), -1, 1) on both parts."""
+    err = lambda x, y: np.mean((np.clip(np.asarray(apply_fn(params, x)), -1, 1) - y) ** 2, 0).tolist()  # noqa: E731
     return {"train": err(x_tr, y_tr), "test": err(x_te, y_te)}
 
 
-def finetune(pol, obs, lab, alive, steps: int, lr: float, seed: int = 0):
+def offline_fit(d: dict, hidden, steps: int, seed: int = 0) -> dict[str, list[float]]:
+    """A fresh MLP fitted to the labels on the first 80% of the envs; per-channel squared errors of both."""
+    (x_tr, x_te), (y_tr, y_te) = split(d, "obs"), split(d, "lab")
+    mu, sd = x_tr.mean(0), x_tr.std(0) + 1e-6
+    x_tr, x_te = (x_tr - mu) / sd, (x_te - mu) / sd
+    net = MLP(tuple(hidden), y_tr.shape[-1])
+    p = fit(
+        net.apply, net.init(jax.random.key(seed), x_tr[:1]), x_tr, y_tr, steps, 1e-3, jax.random.key(seed + 1)
+    )
+    return channel_errors(net.apply, p, x_tr, y_tr, x_te, y_te)
+
+
+def finetune(pol, d: dict, steps: int, lr: float, seed: int = 0):
     """The policy's own actor fitted further to the labels (train split), as a Policy; per-channel errors."""
-    n_train = int(0.8 * obs.shape[0])
-    part = lambda a, s: a[s].reshape(-1, a.shape[-1])[alive[s].reshape(-1)]  # noqa: E731
-    tr, te = slice(0, n_train), slice(n_train, None)
-    x_tr, y_tr = jnp.asarray(part(obs, tr)), jnp.asarray(part(lab, tr))
-    x_te, y_te = jnp.asarray(part(obs, te)), np.asarray(part(lab, te))
-    norm = lambda x: obs_norm.normalize(pol.normalizer, x)  # noqa: E731
-    mean_of = lambda pp, x: pol.networks.policy(pol.params._replace(policy=pp), norm(x))[0]  # noqa: E731
-    opt = optax.adam(optax.cosine_decay_schedule(lr, steps))
-    pp = pol.params.policy
-    st = opt.init(pp)
+    (x_tr, x_te), (y_tr, y_te) = split(d, "obs"), split(d, "lab")
 
-    @jax.jit
-    def update(pp, st, k):
-        i = jax.random.randint(k, (4096,), 0, x_tr.shape[0])
-        g = jax.grad(lambda q: jnp.mean(jnp.sum((jnp.clip(mean_of(q, x_tr[i]), -1, 1) - y_tr[i]) ** 2, -1)))(
-            pp
-        )
-        u, st = opt.update(g, st)
-        return optax.apply_updates(pp, u), st
+    def mean_of(pp, x):
+        return pol.networks.policy(pol.params._replace(policy=pp), obs_norm.normalize(pol.normalizer, x))[0]
 
-    for k in jax.random.split(jax.random.key(seed + 2), steps):
-        pp, st = update(pp, st, k)
-    err = lambda x, y: np.mean((np.clip(np.asarray(mean_of(pp, x)), -1, 1) - np.asarray(y)) ** 2, 0).tolist()  # noqa: E731
+    pp = fit(mean_of, pol.params.policy, x_tr, y_tr, steps, lr, jax.random.key(seed + 2))
     new = policy_io.make_policy(pol.params._replace(policy=pp), pol.normalizer, pol.networks, meta=pol.meta)
-    return new, {"train": err(x_tr, y_tr), "test": err(x_te, y_te)}
+    return new, channel_errors(mean_of, pp, x_tr, y_tr, x_te, y_te)
 
 
 def main() -> None:
@@ -151,13 +152,12 @@ def main() -> None:
     ap.add_argument("--skip-fresh", action="store_true", help="no fresh-network fit (only --finetune-out)")
     ap.add_argument("--out", type=Path, required=True)
     a = ap.parse_args()
-    d = fly(a.run, a.seed, a.envs, a.steps, a.draw_seed, a.nominal)
+    d, pol, hidden = fly(a.run, a.seed, a.envs, a.steps, a.draw_seed, a.nominal)
     m = d["alive"]
     act, lab = d["act"][m], d["lab"][m]
     switch = np.abs(np.diff(d["lab"], axis=1)) > 0.5
     switch = np.concatenate([np.zeros_like(switch[:, :1]), switch], axis=1)[m]
     err = (act - lab) ** 2
-    hidden = json.loads((a.run / "config.json").read_text())["ppo"]["hidden_sizes"]
     res = {
         "run": str(a.run),
         "policy_seed": a.seed,
@@ -176,12 +176,9 @@ def main() -> None:
         "offline_fit_steps": a.fit_steps,
     }
     if not a.skip_fresh:
-        res["offline_fit_sq_error_per_channel"] = offline_fit(
-            d["obs"], d["lab"], d["alive"], hidden, a.fit_steps
-        )
+        res["offline_fit_sq_error_per_channel"] = offline_fit(d, hidden, a.fit_steps)
     if a.finetune_out is not None:
-        pol = policy_io.load(a.run / "policy" / f"policy_seed{a.seed}.npz")
-        new, fit_err = finetune(pol, d["obs"], d["lab"], d["alive"], a.fit_steps, a.finetune_lr)
+        new, fit_err = finetune(pol, d, a.fit_steps, a.finetune_lr)
         policy_io.export_npz(a.finetune_out, new)
         res["finetune_out"] = str(a.finetune_out)
         res["finetune_lr"] = a.finetune_lr
