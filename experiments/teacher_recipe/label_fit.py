@@ -8,7 +8,9 @@ switches (a label moving by > 0.5 in one step), and the error of a fresh network
 offline to the same (observation, label) pairs (Adam, ``--fit-steps`` steps of 4096 samples, on the first 80%
 of the envs; scored on both parts). With ``--finetune-out`` the policy's own actor is fitted the same way (its
 observation statistics kept) and written as a policy file: one round of DAgger with the whole round's data
-aggregated, which ``harv-jax mc`` can fly.
+aggregated, which ``harv-jax mc`` can fly. ``--rounds N`` makes it N rounds: each refitted policy flies
+``--envs`` fresh resets (draw seed ``--draw-seed`` + round), its flights join the earlier ones, and the actor
+is fitted again to all of them (Ross et al. 2011).
 
     python experiments/teacher_recipe/label_fit.py runs/tuning_v48_teacher_zoom_wide_dagger_seed7 --seed 0 \\
         --envs 2048 --steps 1000 --finetune-out runs/v48_seed0_refit.npz --out label_fit.json
@@ -33,14 +35,19 @@ from harv_jax.ppo.checkpoint import stored_configs
 from harv_jax.training.environment import make_harv_env
 
 
-def fly(run: Path, seed: int, envs: int, steps: int, draw_seed: int, nominal: bool) -> tuple[dict, Any, list]:
-    """(observations, policy actions, teacher labels and the alive mask [envs, steps, ...]; the policy; the
-    run's hidden widths)."""
+def load_run(run: Path, seed: int, nominal: bool) -> tuple[Any, Any, Any, list]:
+    """The run's training env (its stored settings), its params, policy ``seed`` and its hidden widths."""
     cfg, env_table = stored_configs(run)
     if nominal:
         env_table = {**env_table, "domain_randomization": False}
     env, params = make_harv_env(env_table)
     pol = policy_io.load(run / "policy" / f"policy_seed{seed}.npz")
+    return env, params, pol, list(cfg.hidden_sizes)
+
+
+def fly(env, params, pol, envs: int, steps: int, draw_seed: int) -> dict:
+    """Observations, policy actions, teacher labels and the alive mask [envs, steps, ...] of ``pol`` (its
+    Gaussian mean) flying ``env`` from ``envs`` resets of ``draw_seed``."""
     keys = jax.random.split(jax.random.key(draw_seed), envs)
 
     def one(key):
@@ -58,13 +65,12 @@ def fly(run: Path, seed: int, envs: int, steps: int, draw_seed: int, nominal: bo
         return out
 
     obs, act, lab, alive = jax.jit(jax.vmap(one))(keys)
-    data = {
+    return {
         "obs": np.asarray(obs),
         "act": np.asarray(act),
         "lab": np.asarray(lab),
         "alive": np.asarray(alive),
     }
-    return data, pol, list(cfg.hidden_sizes)
 
 
 class MLP(nn.Module):
@@ -83,6 +89,12 @@ def split(d: dict, key: str) -> tuple[np.ndarray, np.ndarray]:
     n_train = int(0.8 * d[key].shape[0])
     part = lambda s: d[key][s].reshape(-1, d[key].shape[-1])[d["alive"][s].reshape(-1)]  # noqa: E731
     return part(slice(0, n_train)), part(slice(n_train, None))
+
+
+def pooled(rounds: list[dict], key: str) -> tuple[np.ndarray, np.ndarray]:
+    """The train parts of every round's ``key`` stacked (the aggregate); the held-out part of the last."""
+    parts = [split(d, key) for d in rounds]
+    return np.concatenate([tr for tr, _ in parts]), parts[-1][1]
 
 
 def fit(apply_fn, params, x_tr, y_tr, steps: int, lr: float, key: jax.Array):
@@ -124,9 +136,10 @@ def offline_fit(d: dict, hidden, steps: int, seed: int = 0) -> dict[str, list[fl
     return channel_errors(net.apply, p, x_tr, y_tr, x_te, y_te)
 
 
-def finetune(pol, d: dict, steps: int, lr: float, seed: int = 0):
-    """The policy's own actor fitted further to the labels (train split), as a Policy; per-channel errors."""
-    (x_tr, x_te), (y_tr, y_te) = split(d, "obs"), split(d, "lab")
+def finetune(pol, rounds: list[dict], steps: int, lr: float, seed: int = 0):
+    """The policy's own actor fitted further to the labels of every round's train part, as a Policy;
+    per-channel errors on that aggregate and on the last round's held-out flights."""
+    (x_tr, x_te), (y_tr, y_te) = pooled(rounds, "obs"), pooled(rounds, "lab")
 
     def mean_of(pp, x):
         return pol.networks.policy(pol.params._replace(policy=pp), obs_norm.normalize(pol.normalizer, x))[0]
@@ -134,6 +147,23 @@ def finetune(pol, d: dict, steps: int, lr: float, seed: int = 0):
     pp = fit(mean_of, pol.params.policy, x_tr, y_tr, steps, lr, jax.random.key(seed + 2))
     new = policy_io.make_policy(pol.params._replace(policy=pp), pol.normalizer, pol.networks, meta=pol.meta)
     return new, channel_errors(mean_of, pp, x_tr, y_tr, x_te, y_te)
+
+
+def dagger(env, params, pol, first: dict, args) -> tuple[Any, list[dict]]:
+    """``args.rounds`` rounds of DAgger with the data aggregated (Ross et al. 2011): fit the actor to every
+    round's labels so far, fly the fitted policy from fresh resets (draw seed ``args.draw_seed`` + round),
+    add its flights; per round the flying policy's error on its own flights and the fit's errors."""
+    rounds, log = [first], []
+    for r in range(args.rounds):
+        pol, fit_err = finetune(pol, rounds, args.fit_steps, args.finetune_lr, seed=r)
+        entry = {"round": r, "samples": int(sum(d["alive"].sum() for d in rounds)), "fit": fit_err}
+        if r + 1 < args.rounds:
+            rounds.append(fly(env, params, pol, args.envs, args.steps, args.draw_seed + r + 1))
+            m = rounds[-1]["alive"]
+            own = (rounds[-1]["act"][m] - rounds[-1]["lab"][m]) ** 2
+            entry["next_policy_sq_error_on_own_flights"] = own.mean(0).tolist()
+        log.append(entry)
+    return pol, log
 
 
 def main() -> None:
@@ -149,10 +179,12 @@ def main() -> None:
         "--finetune-out", type=Path, help="also fit the policy's own actor offline; write it here"
     )
     ap.add_argument("--finetune-lr", type=float, default=3e-4)
+    ap.add_argument("--rounds", type=int, default=1, help="DAgger rounds of the refit (data aggregated)")
     ap.add_argument("--skip-fresh", action="store_true", help="no fresh-network fit (only --finetune-out)")
     ap.add_argument("--out", type=Path, required=True)
     a = ap.parse_args()
-    d, pol, hidden = fly(a.run, a.seed, a.envs, a.steps, a.draw_seed, a.nominal)
+    env, params, pol, hidden = load_run(a.run, a.seed, a.nominal)
+    d = fly(env, params, pol, a.envs, a.steps, a.draw_seed)
     m = d["alive"]
     act, lab = d["act"][m], d["lab"][m]
     switch = np.abs(np.diff(d["lab"], axis=1)) > 0.5
@@ -178,11 +210,13 @@ def main() -> None:
     if not a.skip_fresh:
         res["offline_fit_sq_error_per_channel"] = offline_fit(d, hidden, a.fit_steps)
     if a.finetune_out is not None:
-        new, fit_err = finetune(pol, d, a.fit_steps, a.finetune_lr)
+        new, log = dagger(env, params, pol, d, a)
         policy_io.export_npz(a.finetune_out, new)
         res["finetune_out"] = str(a.finetune_out)
         res["finetune_lr"] = a.finetune_lr
-        res["finetune_sq_error_per_channel"] = fit_err
+        res["finetune_sq_error_per_channel"] = log[-1]["fit"]
+        if a.rounds > 1:
+            res["dagger_rounds"] = log
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text(json.dumps(res, indent=1))
     print(json.dumps(res, indent=1))
