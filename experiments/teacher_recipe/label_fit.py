@@ -183,6 +183,8 @@ def main() -> None:
     ap.add_argument("--skip-fresh", action="store_true", help="no fresh-network fit (only --finetune-out)")
     ap.add_argument("--out", type=Path, required=True)
     a = ap.parse_args()
+    if a.rounds < 1:
+        ap.error(f"--rounds {a.rounds}: must be >= 1")
     env, params, pol, hidden = load_run(a.run, a.seed, a.nominal)
     d = fly(env, params, pol, a.envs, a.steps, a.draw_seed)
     m = d["alive"]
