@@ -84,6 +84,12 @@ class MLP(nn.Module):
         return nn.Dense(self.out)(x)
 
 
+def own_errors(d: dict) -> np.ndarray:
+    """[alive samples, channels] squared error of the flying policy's action against the teacher's label."""
+    m = d["alive"]
+    return (d["act"][m] - d["lab"][m]) ** 2
+
+
 def split(d: dict, key: str) -> tuple[np.ndarray, np.ndarray]:
     """The alive samples of ``d[key]``: (the first 80% of the envs, the rest), each [samples, ...]."""
     n_train = int(0.8 * d[key].shape[0])
@@ -159,9 +165,7 @@ def dagger(env, params, pol, first: dict, args) -> tuple[Any, list[dict]]:
         entry = {"round": r, "samples": int(sum(d["alive"].sum() for d in rounds)), "fit": fit_err}
         if r + 1 < args.rounds:
             rounds.append(fly(env, params, pol, args.envs, args.steps, args.draw_seed + r + 1))
-            m = rounds[-1]["alive"]
-            own = (rounds[-1]["act"][m] - rounds[-1]["lab"][m]) ** 2
-            entry["next_policy_sq_error_on_own_flights"] = own.mean(0).tolist()
+            entry["next_policy_sq_error_on_own_flights"] = own_errors(rounds[-1]).mean(0).tolist()
         log.append(entry)
     return pol, log
 
@@ -188,10 +192,10 @@ def main() -> None:
     env, params, pol, hidden = load_run(a.run, a.seed, a.nominal)
     d = fly(env, params, pol, a.envs, a.steps, a.draw_seed)
     m = d["alive"]
-    act, lab = d["act"][m], d["lab"][m]
+    lab = d["lab"][m]
     switch = np.abs(np.diff(d["lab"], axis=1)) > 0.5
     switch = np.concatenate([np.zeros_like(switch[:, :1]), switch], axis=1)[m]
-    err = (act - lab) ** 2
+    err = own_errors(d)
     res = {
         "run": str(a.run),
         "policy_seed": a.seed,
