@@ -103,15 +103,16 @@ def pooled(rounds: list[dict], key: str) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate([tr for tr, _ in parts]), parts[-1][1]
 
 
-def fit(apply_fn, params, x_tr, y_tr, steps: int, lr: float, key: jax.Array):
+def fit(apply_fn, params, x_tr, y_tr, steps: int, lr: float, key: jax.Array, weights=None):
     """Adam (cosine decay from ``lr``), ``steps`` minibatches of 4096: mean over samples of
-    sum_channels (clip(apply_fn(params, x), -1, 1) - y)^2."""
+    sum_channels w_c (clip(apply_fn(params, x), -1, 1) - y)^2 (``weights`` w [3]; None: every w_c = 1)."""
     x_tr, y_tr = jnp.asarray(x_tr), jnp.asarray(y_tr)
     opt = optax.adam(optax.cosine_decay_schedule(lr, steps))
     st = opt.init(params)
 
     def loss(p, x, y):
-        return jnp.mean(jnp.sum((jnp.clip(apply_fn(p, x), -1, 1) - y) ** 2, -1))
+        sq = (jnp.clip(apply_fn(p, x), -1, 1) - y) ** 2
+        return jnp.mean(jnp.sum(sq if weights is None else sq * jnp.asarray(weights, sq.dtype), -1))
 
     @jax.jit
     def update(p, st, k):
@@ -142,15 +143,16 @@ def offline_fit(d: dict, hidden, steps: int, seed: int = 0) -> dict[str, list[fl
     return channel_errors(net.apply, p, x_tr, y_tr, x_te, y_te)
 
 
-def finetune(pol, rounds: list[dict], steps: int, lr: float, seed: int = 0):
-    """The policy's own actor fitted further to the labels of every round's train part, as a Policy;
-    per-channel errors on that aggregate and on the last round's held-out flights."""
+def finetune(pol, rounds: list[dict], steps: int, lr: float, seed: int = 0, weights=None):
+    """The policy's own actor fitted further to the labels of every round's train part (channel weights
+    ``weights``, see :func:`fit`), as a Policy; per-channel errors on that aggregate and on the last round's
+    held-out flights."""
     (x_tr, x_te), (y_tr, y_te) = pooled(rounds, "obs"), pooled(rounds, "lab")
 
     def mean_of(pp, x):
         return pol.networks.policy(pol.params._replace(policy=pp), obs_norm.normalize(pol.normalizer, x))[0]
 
-    pp = fit(mean_of, pol.params.policy, x_tr, y_tr, steps, lr, jax.random.key(seed + 2))
+    pp = fit(mean_of, pol.params.policy, x_tr, y_tr, steps, lr, jax.random.key(seed + 2), weights)
     new = policy_io.make_policy(pol.params._replace(policy=pp), pol.normalizer, pol.networks, meta=pol.meta)
     return new, channel_errors(mean_of, pp, x_tr, y_tr, x_te, y_te)
 
@@ -161,7 +163,7 @@ def dagger(env, params, pol, first: dict, args) -> tuple[Any, list[dict]]:
     add its flights; per round the flying policy's error on its own flights and the fit's errors."""
     rounds, log = [first], []
     for r in range(args.rounds):
-        pol, fit_err = finetune(pol, rounds, args.fit_steps, args.finetune_lr, seed=r)
+        pol, fit_err = finetune(pol, rounds, args.fit_steps, args.finetune_lr, seed=r, weights=args.weights)
         entry = {"round": r, "samples": int(sum(d["alive"].sum() for d in rounds)), "fit": fit_err}
         if r + 1 < args.rounds:
             rounds.append(fly(env, params, pol, args.envs, args.steps, args.draw_seed + r + 1))
@@ -185,10 +187,21 @@ def main() -> None:
     ap.add_argument("--finetune-lr", type=float, default=3e-4)
     ap.add_argument("--rounds", type=int, default=1, help="DAgger rounds of the refit (data aggregated)")
     ap.add_argument("--skip-fresh", action="store_true", help="no fresh-network fit (only --finetune-out)")
+    ap.add_argument(
+        "--channel-weights", help="W0,W1,W2: the action channels' weights in the refit's loss (default 1,1,1)"
+    )
     ap.add_argument("--out", type=Path, required=True)
     a = ap.parse_args()
     if a.rounds < 1:
         ap.error(f"--rounds {a.rounds}: must be >= 1")
+    a.weights = None
+    if a.channel_weights is not None:
+        try:
+            a.weights = [float(w) for w in a.channel_weights.split(",")]
+        except ValueError:
+            a.weights = []
+        if len(a.weights) != 3 or not all(np.isfinite(w) and w > 0 for w in a.weights):
+            ap.error(f"--channel-weights {a.channel_weights!r}: allowed: three positive numbers, e.g. 4,1,1")
     env, params, pol, hidden = load_run(a.run, a.seed, a.nominal)
     d = fly(env, params, pol, a.envs, a.steps, a.draw_seed)
     m = d["alive"]
@@ -220,6 +233,8 @@ def main() -> None:
         policy_io.export_npz(a.finetune_out, new)
         res["finetune_out"] = str(a.finetune_out)
         res["finetune_lr"] = a.finetune_lr
+        if a.weights is not None:
+            res["finetune_channel_weights"] = a.weights
         res["finetune_sq_error_per_channel"] = log[-1]["fit"]
         if a.rounds > 1:
             res["dagger_rounds"] = log
