@@ -23,7 +23,7 @@ import numpy as np
 from harv_jax.aircraft import harv
 from harv_jax.control.smc import SMCConfig, default_gains, make_smc
 from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
-from harv_jax.evaluation.paired import PAIRED_MARGIN_S
+from harv_jax.evaluation.paired import paired_vs_reference, times_nr_at_run_s
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 REF = jnp.asarray([ALPHA_TARGET_RAD, 0.0, 0.0])
@@ -35,17 +35,18 @@ GAINS = ("lambda1_ps", "lambda2_ps2", "k_reach", "phi_radps")
 def times_s(ctrl, inputs) -> np.ndarray:
     """Per-run recovery time, s, with a run not recovered at the run length."""
     m = run_mc(ctrl, inputs, REF, N_STEPS)[0].metrics
-    return np.where(np.asarray(m.recovered, bool), np.asarray(m.t_recover_s, np.float64), DURATION_S)
+    return times_nr_at_run_s(m.t_recover_s, m.recovered, DURATION_S)
 
 
 def paired(t: np.ndarray, t_smc: np.ndarray) -> dict[str, float]:
-    """Shares of runs slower / faster than the SMC by more than the margin, and the mean-time ratio."""
-    d = t - t_smc
+    """Shares of runs slower / faster than the SMC by more than 1 s, and the mean-time ratio
+    (``paired_vs_reference`` on times that already count a not-recovered run at the run length)."""
+    vs = paired_vs_reference(t, np.ones(t.shape, bool), t_smc, np.ones(t_smc.shape, bool), DURATION_S)
     return {
-        "runs": int(t.size),
-        "slower": float(np.mean(d > PAIRED_MARGIN_S)),
-        "faster": float(np.mean(d < -PAIRED_MARGIN_S)),
-        "mean_ratio": float(t.mean() / t_smc.mean()),
+        "runs": vs["runs"],
+        "slower": vs["slower_fraction"],
+        "faster": vs["faster_fraction"],
+        "mean_ratio": vs["mean_ratio"],
     }
 
 

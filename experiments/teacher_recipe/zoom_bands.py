@@ -22,6 +22,7 @@ from harv_jax.control import smc_brake as sb
 from harv_jax.control.registry import ControllerOptions, build_controller
 from harv_jax.control.smc import default_gains
 from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+from harv_jax.evaluation.paired import times_nr_at_run_s
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 REF = jnp.asarray([ALPHA_TARGET_RAD, 0.0, 0.0])
@@ -32,7 +33,7 @@ BANDS_FPS = ((0, 400), (400, 600), (600, 800), (800, 1000), (1000, 1200), (1200,
 def times_s(ctrl, inputs) -> np.ndarray:
     """Per-run recovery time, s, with a run not recovered at the run length."""
     m = run_mc(ctrl, inputs, REF, N_STEPS)[0].metrics
-    return np.where(np.asarray(m.recovered, bool), np.asarray(m.t_recover_s, np.float64), DURATION_S)
+    return times_nr_at_run_s(m.t_recover_s, m.recovered, DURATION_S)
 
 
 def main() -> None:
