@@ -10,7 +10,10 @@ of the envs; scored on both parts). With ``--finetune-out`` the policy's own act
 observation statistics kept) and written as a policy file: one round of DAgger with the whole round's data
 aggregated, which ``harv-jax mc`` can fly. ``--rounds N`` makes it N rounds: each refitted policy flies
 ``--envs`` fresh resets (draw seed ``--draw-seed`` + round), its flights join the earlier ones, and the actor
-is fitted again to all of them (Ross et al. 2011).
+is fitted again to all of them (Ross et al. 2011). ``--channel-weights`` weighs the channels in the refit's
+loss; ``--rate-weight R`` adds R times the squared error of the action's change from one step to the next
+against the label's change (consecutive alive steps of the same flight), so the refit copies how the
+teacher's command moves as well as where it is.
 
     python experiments/teacher_recipe/label_fit.py runs/tuning_v48_teacher_zoom_wide_dagger_seed7 --seed 0 \\
         --envs 2048 --steps 1000 --finetune-out runs/v48_seed0_refit.npz --out label_fit.json
@@ -90,6 +93,18 @@ def own_errors(d: dict) -> np.ndarray:
     return (d["act"][m] - d["lab"][m]) ** 2
 
 
+def own_rates(d: dict) -> dict[str, list[float]]:
+    """Per channel, over the steps where both ends are alive: the mean |change per step| of the flying
+    policy's action and of the teacher's label, and the mean squared difference of the two changes."""
+    m = d["alive"][:, 1:] & d["alive"][:, :-1]
+    da, dl = np.diff(d["act"], axis=1)[m], np.diff(d["lab"], axis=1)[m]
+    return {
+        "policy_abs_rate": np.abs(da).mean(0).tolist(),
+        "label_abs_rate": np.abs(dl).mean(0).tolist(),
+        "rate_sq_error": ((da - dl) ** 2).mean(0).tolist(),
+    }
+
+
 def split(d: dict, key: str) -> tuple[np.ndarray, np.ndarray]:
     """The alive samples of ``d[key]``: (the first 80% of the envs, the rest), each [samples, ...]."""
     n_train = int(0.8 * d[key].shape[0])
@@ -103,21 +118,53 @@ def pooled(rounds: list[dict], key: str) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate([tr for tr, _ in parts]), parts[-1][1]
 
 
-def fit(apply_fn, params, x_tr, y_tr, steps: int, lr: float, key: jax.Array, weights=None):
+def pooled_pairs(rounds: list[dict]) -> tuple[np.ndarray, np.ndarray]:
+    """Consecutive alive steps of every round's train part: observations [pairs, 2, obs] and labels
+    [pairs, 2, channels] (step t, step t + 1)."""
+    xs, ys = [], []
+    for d in rounds:
+        n_train = int(0.8 * d["obs"].shape[0])
+        al = d["alive"][:n_train]
+        m = al[:, 1:] & al[:, :-1]
+        for key, out in (("obs", xs), ("lab", ys)):
+            v = d[key][:n_train]
+            out.append(np.stack([v[:, :-1][m], v[:, 1:][m]], axis=1))
+    return np.concatenate(xs), np.concatenate(ys)
+
+
+def fit(apply_fn, params, x_tr, y_tr, steps: int, lr: float, key: jax.Array, weights=None, rate=None):
     """Adam (cosine decay from ``lr``), ``steps`` minibatches of 4096: mean over samples of
-    sum_channels w_c (clip(apply_fn(params, x), -1, 1) - y)^2 (``weights`` w [3]; None: every w_c = 1)."""
+    sum_channels w_c (clip(apply_fn(params, x), -1, 1) - y)^2 (``weights`` w [3]; None: every w_c = 1).
+    ``rate`` (R, x pairs [P, 2, obs], y pairs [P, 2, channels]) adds R times the mean over 4096 pairs of
+    sum_channels w_c (change of the clipped output from step t to t + 1 - the label's change)^2."""
     x_tr, y_tr = jnp.asarray(x_tr), jnp.asarray(y_tr)
     opt = optax.adam(optax.cosine_decay_schedule(lr, steps))
     st = opt.init(params)
+    w = None if weights is None else jnp.asarray(weights, y_tr.dtype)
 
     def loss(p, x, y):
         sq = (jnp.clip(apply_fn(p, x), -1, 1) - y) ** 2
-        return jnp.mean(jnp.sum(sq if weights is None else sq * jnp.asarray(weights, sq.dtype), -1))
+        return jnp.mean(jnp.sum(sq if w is None else sq * w, -1))
+
+    def rate_loss(p, xp, yp):
+        a = jnp.clip(apply_fn(p, xp.reshape(-1, xp.shape[-1])), -1, 1).reshape(yp.shape)
+        sq = ((a[:, 1] - a[:, 0]) - (yp[:, 1] - yp[:, 0])) ** 2
+        return jnp.mean(jnp.sum(sq if w is None else sq * w, -1))
+
+    if rate is None:
+        objective = loss
+    else:
+        r_w, xp_tr, yp_tr = rate[0], jnp.asarray(rate[1]), jnp.asarray(rate[2])
+
+        def objective(p, x, y, k):
+            j = jax.random.randint(jax.random.fold_in(k, 1), (4096,), 0, xp_tr.shape[0])
+            return loss(p, x, y) + r_w * rate_loss(p, xp_tr[j], yp_tr[j])
 
     @jax.jit
     def update(p, st, k):
         i = jax.random.randint(k, (4096,), 0, x_tr.shape[0])
-        u, st = opt.update(jax.grad(loss)(p, x_tr[i], y_tr[i]), st)
+        extra = () if rate is None else (k,)
+        u, st = opt.update(jax.grad(objective)(p, x_tr[i], y_tr[i], *extra), st)
         return optax.apply_updates(p, u), st
 
     for k in jax.random.split(key, steps):
@@ -143,16 +190,17 @@ def offline_fit(d: dict, hidden, steps: int, seed: int = 0) -> dict[str, list[fl
     return channel_errors(net.apply, p, x_tr, y_tr, x_te, y_te)
 
 
-def finetune(pol, rounds: list[dict], steps: int, lr: float, seed: int = 0, weights=None):
+def finetune(pol, rounds: list[dict], steps: int, lr: float, seed: int = 0, weights=None, rate_weight=None):
     """The policy's own actor fitted further to the labels of every round's train part (channel weights
-    ``weights``, see :func:`fit`), as a Policy; per-channel errors on that aggregate and on the last round's
-    held-out flights."""
+    ``weights`` and the label-change term of weight ``rate_weight``, see :func:`fit`), as a Policy;
+    per-channel errors on that aggregate and on the last round's held-out flights."""
     (x_tr, x_te), (y_tr, y_te) = pooled(rounds, "obs"), pooled(rounds, "lab")
 
     def mean_of(pp, x):
         return pol.networks.policy(pol.params._replace(policy=pp), obs_norm.normalize(pol.normalizer, x))[0]
 
-    pp = fit(mean_of, pol.params.policy, x_tr, y_tr, steps, lr, jax.random.key(seed + 2), weights)
+    rate = None if rate_weight is None else (rate_weight, *pooled_pairs(rounds))
+    pp = fit(mean_of, pol.params.policy, x_tr, y_tr, steps, lr, jax.random.key(seed + 2), weights, rate)
     new = policy_io.make_policy(pol.params._replace(policy=pp), pol.normalizer, pol.networks, meta=pol.meta)
     return new, channel_errors(mean_of, pp, x_tr, y_tr, x_te, y_te)
 
@@ -163,11 +211,15 @@ def dagger(env, params, pol, first: dict, args) -> tuple[Any, list[dict]]:
     add its flights; per round the flying policy's error on its own flights and the fit's errors."""
     rounds, log = [first], []
     for r in range(args.rounds):
-        pol, fit_err = finetune(pol, rounds, args.fit_steps, args.finetune_lr, seed=r, weights=args.weights)
+        pol, fit_err = finetune(
+            pol, rounds, args.fit_steps, args.finetune_lr, r, args.weights, args.rate_weight
+        )
         entry = {"round": r, "samples": int(sum(d["alive"].sum() for d in rounds)), "fit": fit_err}
         if r + 1 < args.rounds:
             rounds.append(fly(env, params, pol, args.envs, args.steps, args.draw_seed + r + 1))
             entry["next_policy_sq_error_on_own_flights"] = own_errors(rounds[-1]).mean(0).tolist()
+            if args.rate_weight is not None:
+                entry["next_policy_rates_on_own_flights"] = own_rates(rounds[-1])
         log.append(entry)
     return pol, log
 
@@ -190,8 +242,15 @@ def main() -> None:
     ap.add_argument(
         "--channel-weights", help="W0,W1,W2: the action channels' weights in the refit's loss (default 1,1,1)"
     )
+    ap.add_argument(
+        "--rate-weight",
+        type=float,
+        help="R: add R x the squared error of the action's change per step against the label's to the refit",
+    )
     ap.add_argument("--out", type=Path, required=True)
     a = ap.parse_args()
+    if a.rate_weight is not None and not (np.isfinite(a.rate_weight) and a.rate_weight >= 0):
+        ap.error(f"--rate-weight {a.rate_weight}: allowed: a finite number >= 0")
     if a.rounds < 1:
         ap.error(f"--rounds {a.rounds}: must be >= 1")
     a.weights = None
@@ -235,6 +294,9 @@ def main() -> None:
         res["finetune_lr"] = a.finetune_lr
         if a.weights is not None:
             res["finetune_channel_weights"] = a.weights
+        if a.rate_weight is not None:
+            res["finetune_rate_weight"] = a.rate_weight
+            res["policy_rates_on_own_flights"] = own_rates(d)
         res["finetune_sq_error_per_channel"] = log[-1]["fit"]
         if a.rounds > 1:
             res["dagger_rounds"] = log
