@@ -93,10 +93,20 @@ def own_errors(d: dict) -> np.ndarray:
     return (d["act"][m] - d["lab"][m]) ** 2
 
 
+def alive_pairs(alive: np.ndarray) -> np.ndarray:
+    """[envs, steps - 1] mask of the steps t whose step t + 1 is alive too (alive [envs, steps])."""
+    return alive[:, 1:] & alive[:, :-1]
+
+
+def n_train_envs(d: dict) -> int:
+    """How many of the flights (the first 80% of the envs) are the fit's train part."""
+    return int(0.8 * d["alive"].shape[0])
+
+
 def own_rates(d: dict) -> dict[str, list[float]]:
     """Per channel, over the steps where both ends are alive: the mean |change per step| of the flying
     policy's action and of the teacher's label, and the mean squared difference of the two changes."""
-    m = d["alive"][:, 1:] & d["alive"][:, :-1]
+    m = alive_pairs(d["alive"])
     da, dl = np.diff(d["act"], axis=1)[m], np.diff(d["lab"], axis=1)[m]
     return {
         "policy_abs_rate": np.abs(da).mean(0).tolist(),
@@ -107,7 +117,7 @@ def own_rates(d: dict) -> dict[str, list[float]]:
 
 def split(d: dict, key: str) -> tuple[np.ndarray, np.ndarray]:
     """The alive samples of ``d[key]``: (the first 80% of the envs, the rest), each [samples, ...]."""
-    n_train = int(0.8 * d[key].shape[0])
+    n_train = n_train_envs(d)
     part = lambda s: d[key][s].reshape(-1, d[key].shape[-1])[d["alive"][s].reshape(-1)]  # noqa: E731
     return part(slice(0, n_train)), part(slice(n_train, None))
 
@@ -123,9 +133,8 @@ def pooled_pairs(rounds: list[dict]) -> tuple[np.ndarray, np.ndarray]:
     [pairs, 2, channels] (step t, step t + 1)."""
     xs, ys = [], []
     for d in rounds:
-        n_train = int(0.8 * d["obs"].shape[0])
-        al = d["alive"][:n_train]
-        m = al[:, 1:] & al[:, :-1]
+        n_train = n_train_envs(d)
+        m = alive_pairs(d["alive"][:n_train])
         for key, out in (("obs", xs), ("lab", ys)):
             v = d[key][:n_train]
             out.append(np.stack([v[:, :-1][m], v[:, 1:][m]], axis=1))
