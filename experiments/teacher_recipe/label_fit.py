@@ -13,7 +13,9 @@ aggregated, which ``harv-jax mc`` can fly. ``--rounds N`` makes it N rounds: eac
 is fitted again to all of them (Ross et al. 2011). ``--channel-weights`` weighs the channels in the refit's
 loss; ``--rate-weight R`` adds R times the squared error of the action's change from one step to the next
 against the label's change (consecutive alive steps of the same flight), so the refit copies how the
-teacher's command moves as well as where it is.
+teacher's command moves as well as where it is. ``--speed-weight V_REF`` weighs each sample of the refit by
+1 + (V / V_REF)^2 (V its observed airspeed, ft/s), since a deflection error costs a moment that grows with the
+dynamic pressure; the JSON then also gives each flying policy's error by airspeed band.
 
     python experiments/teacher_recipe/label_fit.py runs/tuning_v48_teacher_zoom_wide_dagger_seed7 --seed 0 \\
         --envs 2048 --steps 1000 --finetune-out runs/v48_seed0_refit.npz --out label_fit.json
@@ -115,6 +117,21 @@ def own_rates(d: dict) -> dict[str, list[float]]:
     }
 
 
+AIRSPEED_BANDS_FPS = (0.0, 400.0, 600.0, 1000.0, float("inf"))
+
+
+def errors_by_airspeed(d: dict) -> dict[str, list[float]]:
+    """Per observed-airspeed band (``AIRSPEED_BANDS_FPS``): the flying policy's mean squared error per
+    channel against the label over the band's alive samples (empty band: NaN)."""
+    m = d["alive"]
+    v, err = d["obs"][m][:, 0], own_errors(d)
+    out = {}
+    for lo, hi in zip(AIRSPEED_BANDS_FPS[:-1], AIRSPEED_BANDS_FPS[1:], strict=True):
+        s = (v >= lo) & (v < hi)
+        out[f"{lo:.0f}-{hi:.0f}"] = err[s].mean(0).tolist() if s.any() else [float("nan")] * err.shape[1]
+    return out
+
+
 def split(d: dict, key: str) -> tuple[np.ndarray, np.ndarray]:
     """The alive samples of ``d[key]``: (the first 80% of the envs, the rest), each [samples, ...]."""
     n_train = n_train_envs(d)
@@ -141,9 +158,22 @@ def pooled_pairs(rounds: list[dict]) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(xs), np.concatenate(ys)
 
 
-def fit(apply_fn, params, x_tr, y_tr, steps: int, lr: float, key: jax.Array, weights=None, rate=None):
+def fit(
+    apply_fn,
+    params,
+    x_tr,
+    y_tr,
+    steps: int,
+    lr: float,
+    key: jax.Array,
+    weights=None,
+    rate=None,
+    speed_ref=None,
+):
     """Adam (cosine decay from ``lr``), ``steps`` minibatches of 4096: mean over samples of
-    sum_channels w_c (clip(apply_fn(params, x), -1, 1) - y)^2 (``weights`` w [3]; None: every w_c = 1).
+    sum_channels w_c (clip(apply_fn(params, x), -1, 1) - y)^2 (``weights`` w [3]; None: every w_c = 1),
+    each sample times 1 + (V / ``speed_ref``)^2 where ``speed_ref`` (ft/s) is given (V: the raw
+    observation's airspeed, x[:, 0]).
     ``rate`` (R, x pairs [P, 2, obs], y pairs [P, 2, channels]) adds R times the mean over 4096 pairs of
     sum_channels w_c (change of the clipped output from step t to t + 1 - the label's change)^2."""
     x_tr, y_tr = jnp.asarray(x_tr), jnp.asarray(y_tr)
@@ -153,6 +183,8 @@ def fit(apply_fn, params, x_tr, y_tr, steps: int, lr: float, key: jax.Array, wei
 
     def loss(p, x, y):
         sq = (jnp.clip(apply_fn(p, x), -1, 1) - y) ** 2
+        if speed_ref is not None:
+            sq = sq * (1.0 + (x[:, :1] / speed_ref) ** 2)
         return jnp.mean(jnp.sum(sq if w is None else sq * w, -1))
 
     def rate_loss(p, xp, yp):
@@ -199,9 +231,19 @@ def offline_fit(d: dict, hidden, steps: int, seed: int = 0) -> dict[str, list[fl
     return channel_errors(net.apply, p, x_tr, y_tr, x_te, y_te)
 
 
-def finetune(pol, rounds: list[dict], steps: int, lr: float, seed: int = 0, weights=None, rate_weight=None):
+def finetune(
+    pol,
+    rounds: list[dict],
+    steps: int,
+    lr: float,
+    seed: int = 0,
+    weights=None,
+    rate_weight=None,
+    speed_ref=None,
+):
     """The policy's own actor fitted further to the labels of every round's train part (channel weights
-    ``weights`` and the label-change term of weight ``rate_weight``, see :func:`fit`), as a Policy;
+    ``weights``, the label-change term of weight ``rate_weight`` and the airspeed weight of ``speed_ref``,
+    see :func:`fit`), as a Policy;
     per-channel errors on that aggregate and on the last round's held-out flights."""
     (x_tr, x_te), (y_tr, y_te) = pooled(rounds, "obs"), pooled(rounds, "lab")
 
@@ -209,7 +251,9 @@ def finetune(pol, rounds: list[dict], steps: int, lr: float, seed: int = 0, weig
         return pol.networks.policy(pol.params._replace(policy=pp), obs_norm.normalize(pol.normalizer, x))[0]
 
     rate = None if rate_weight is None else (rate_weight, *pooled_pairs(rounds))
-    pp = fit(mean_of, pol.params.policy, x_tr, y_tr, steps, lr, jax.random.key(seed + 2), weights, rate)
+    pp = fit(
+        mean_of, pol.params.policy, x_tr, y_tr, steps, lr, jax.random.key(seed + 2), weights, rate, speed_ref
+    )
     new = policy_io.make_policy(pol.params._replace(policy=pp), pol.normalizer, pol.networks, meta=pol.meta)
     return new, channel_errors(mean_of, pp, x_tr, y_tr, x_te, y_te)
 
@@ -221,7 +265,14 @@ def dagger(env, params, pol, first: dict, args) -> tuple[Any, list[dict]]:
     rounds, log = [first], []
     for r in range(args.rounds):
         pol, fit_err = finetune(
-            pol, rounds, args.fit_steps, args.finetune_lr, r, args.weights, args.rate_weight
+            pol,
+            rounds,
+            args.fit_steps,
+            args.finetune_lr,
+            r,
+            args.weights,
+            args.rate_weight,
+            args.speed_weight,
         )
         entry = {"round": r, "samples": int(sum(d["alive"].sum() for d in rounds)), "fit": fit_err}
         if r + 1 < args.rounds:
@@ -229,6 +280,8 @@ def dagger(env, params, pol, first: dict, args) -> tuple[Any, list[dict]]:
             entry["next_policy_sq_error_on_own_flights"] = own_errors(rounds[-1]).mean(0).tolist()
             if args.rate_weight is not None:
                 entry["next_policy_rates_on_own_flights"] = own_rates(rounds[-1])
+            if args.speed_weight is not None:
+                entry["next_policy_sq_error_by_airspeed"] = errors_by_airspeed(rounds[-1])
         log.append(entry)
     return pol, log
 
@@ -256,8 +309,16 @@ def main() -> None:
         type=float,
         help="R: add R x the squared error of the action's change per step against the label's to the refit",
     )
+    ap.add_argument(
+        "--speed-weight",
+        type=float,
+        metavar="V_REF",
+        help="weigh each sample of the refit by 1 + (V / V_REF)^2 (V its observed airspeed, ft/s)",
+    )
     ap.add_argument("--out", type=Path, required=True)
     a = ap.parse_args()
+    if a.speed_weight is not None and not (np.isfinite(a.speed_weight) and a.speed_weight > 0):
+        ap.error(f"--speed-weight {a.speed_weight}: allowed: a finite airspeed > 0 (ft/s)")
     if a.rate_weight is not None and not (np.isfinite(a.rate_weight) and a.rate_weight >= 0):
         ap.error(f"--rate-weight {a.rate_weight}: allowed: a finite number >= 0")
     if a.rounds < 1:
@@ -306,6 +367,9 @@ def main() -> None:
         if a.rate_weight is not None:
             res["finetune_rate_weight"] = a.rate_weight
             res["policy_rates_on_own_flights"] = own_rates(d)
+        if a.speed_weight is not None:
+            res["finetune_speed_weight_ref_fps"] = a.speed_weight
+            res["policy_sq_error_by_airspeed"] = errors_by_airspeed(d)
         res["finetune_sq_error_per_channel"] = log[-1]["fit"]
         if a.rounds > 1:
             res["dagger_rounds"] = log

@@ -1,5 +1,6 @@
-"""Mean recovery time and the share of runs slower than the SMC by > 1 s, by the airspeed at engagement: the
-SMC, the braking SMCs, ``smc-brake-zoom`` without the integral term of its sliding surface, and policies.
+"""Mean recovery time, the share of runs slower than the SMC by > 1 s and the mean control TV (summed over
+the surfaces, as ``harv-jax mc``), by the airspeed at engagement: the SMC, the braking SMCs,
+``smc-brake-zoom`` without the integral term of its sliding surface, and policies.
 
     python experiments/teacher_recipe/zoom_bands.py --mc-seed 11 [--policy P ...] \\
         --out experiments/teacher_recipe/results/zoom_bands_mc11.json
@@ -30,10 +31,11 @@ N_STEPS, DURATION_S = 6000, 60.0
 BANDS_FPS = ((0, 400), (400, 600), (600, 800), (800, 1000), (1000, 1200), (1200, 1400), (1400, 2000))
 
 
-def times_s(ctrl, inputs) -> np.ndarray:
-    """Per-run recovery time, s, with a run not recovered at the run length."""
+def times_and_tv(ctrl, inputs) -> tuple[np.ndarray, np.ndarray]:
+    """Per-run recovery time, s, with a run not recovered at the run length; per-run control TV, rad."""
     m = run_mc(ctrl, inputs, REF, N_STEPS)[0].metrics
-    return times_nr_at_run_s(m.t_recover_s, m.recovered, DURATION_S)
+    tv_rad = np.asarray(m.control_tv_rad, np.float64).sum(-1)
+    return times_nr_at_run_s(m.t_recover_s, m.recovered, DURATION_S), tv_rad
 
 
 def main() -> None:
@@ -52,9 +54,10 @@ def main() -> None:
     )
     for p in a.policy:
         controllers[f"rl {p}"] = build_controller("rl", ControllerOptions(policy=p))
-    t = {name: times_s(c, inputs) for name, c in controllers.items()}
+    flown = {name: times_and_tv(c, inputs) for name, c in controllers.items()}
+    t = {name: tt for name, (tt, _) in flown.items()}
     rows = []
-    for name, tt in t.items():
+    for name, (tt, tv) in flown.items():
         slower = tt - t["smc"] > 1.0
         bands = [
             {
@@ -63,14 +66,18 @@ def main() -> None:
                 "runs": int(m.sum()),
                 "mean_s": float(tt[m].mean()),
                 "slower_than_smc_by_1s": float(slower[m].mean()),
+                "tv_rad": float(tv[m].mean()),
             }  # fmt: skip
             for lo, hi in BANDS_FPS
             if (m := (v0 >= lo) & (v0 < hi)).any()
         ]
         row = {"controller": name, "mean_over_smc": float(tt.mean() / t["smc"].mean()),
-               "slower_than_smc_by_1s": float(slower.mean()), "bands": bands}  # fmt: skip
+               "slower_than_smc_by_1s": float(slower.mean()), "tv_rad": float(tv.mean()),
+               "bands": bands}  # fmt: skip
         rows.append(row)
-        cells = " ".join(f"{b['mean_s']:6.2f}/{b['slower_than_smc_by_1s']:.2f}" for b in bands)
+        cells = " ".join(
+            f"{b['mean_s']:6.2f}/{b['slower_than_smc_by_1s']:.2f}/{b['tv_rad']:.2f}" for b in bands
+        )
         print(f"{name}: {row['mean_over_smc']:.3f}x smc, slower {row['slower_than_smc_by_1s']:.3f} | {cells}")
     cmd = " ".join(["python experiments/teacher_recipe/zoom_bands.py", f"--mc-seed {a.mc_seed}", f"--n {a.n}",
                     *(f"--policy {p}" for p in a.policy)])  # fmt: skip
