@@ -120,11 +120,10 @@ def own_rates(d: dict) -> dict[str, list[float]]:
 AIRSPEED_BANDS_FPS = (0.0, 400.0, 600.0, 1000.0, float("inf"))
 
 
-def errors_by_airspeed(d: dict) -> dict[str, list[float]]:
-    """Per observed-airspeed band (``AIRSPEED_BANDS_FPS``): the flying policy's mean squared error per
-    channel against the label over the band's alive samples (empty band: NaN)."""
-    m = d["alive"]
-    v, err = d["obs"][m][:, 0], own_errors(d)
+def errors_by_airspeed(d: dict, err: np.ndarray) -> dict[str, list[float]]:
+    """Per observed-airspeed band (``AIRSPEED_BANDS_FPS``): the mean over the band's alive samples of ``err``
+    (:func:`own_errors` of ``d``), per channel (empty band: NaN)."""
+    v = d["obs"][d["alive"]][:, 0]
     out = {}
     for lo, hi in zip(AIRSPEED_BANDS_FPS[:-1], AIRSPEED_BANDS_FPS[1:], strict=True):
         s = (v >= lo) & (v < hi)
@@ -277,11 +276,12 @@ def dagger(env, params, pol, first: dict, args) -> tuple[Any, list[dict]]:
         entry = {"round": r, "samples": int(sum(d["alive"].sum() for d in rounds)), "fit": fit_err}
         if r + 1 < args.rounds:
             rounds.append(fly(env, params, pol, args.envs, args.steps, args.draw_seed + r + 1))
-            entry["next_policy_sq_error_on_own_flights"] = own_errors(rounds[-1]).mean(0).tolist()
+            err = own_errors(rounds[-1])
+            entry["next_policy_sq_error_on_own_flights"] = err.mean(0).tolist()
             if args.rate_weight is not None:
                 entry["next_policy_rates_on_own_flights"] = own_rates(rounds[-1])
             if args.speed_weight is not None:
-                entry["next_policy_sq_error_by_airspeed"] = errors_by_airspeed(rounds[-1])
+                entry["next_policy_sq_error_by_airspeed"] = errors_by_airspeed(rounds[-1], err)
         log.append(entry)
     return pol, log
 
@@ -369,7 +369,7 @@ def main() -> None:
             res["policy_rates_on_own_flights"] = own_rates(d)
         if a.speed_weight is not None:
             res["finetune_speed_weight_ref_fps"] = a.speed_weight
-            res["policy_sq_error_by_airspeed"] = errors_by_airspeed(d)
+            res["policy_sq_error_by_airspeed"] = errors_by_airspeed(d, err)
         res["finetune_sq_error_per_channel"] = log[-1]["fit"]
         if a.rounds > 1:
             res["dagger_rounds"] = log
