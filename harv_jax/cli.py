@@ -8,6 +8,7 @@ import sys
 
 import typer
 
+from harv_jax import interrupt, outdir, runlock
 from harv_jax.errors import UsageError
 
 app = typer.Typer(
@@ -69,20 +70,28 @@ def main() -> None:
     # one XLA host device per core: the Monte Carlo and the envelope map shard their runs over them
     use_all_cpu_cores()
     try:
-        app(standalone_mode=False)
-    except typer.Exit as e:
-        sys.exit(e.exit_code)
-    except (UsageError, ValueError, FileExistsError, FileNotFoundError) as e:
-        print(f"harv-jax: error: {e}", file=sys.stderr)
-        sys.exit(2)
-    except Exception as e:  # click/typer usage errors (typer vendors its own click)
-        if hasattr(e, "format_message") and hasattr(e, "exit_code"):
-            if e.format_message():
-                print(f"harv-jax: error: {e.format_message()}", file=sys.stderr)
+        try:
+            with interrupt.handled(outdir.interrupted_message):
+                app(standalone_mode=False)
+            outdir.finish_all()
+        except typer.Exit as e:
+            outdir.finish_all() if not e.exit_code else outdir.forget_all()
             sys.exit(e.exit_code)
-        if type(e).__name__ == "Abort":
-            sys.exit(1)
-        raise
+        except (UsageError, ValueError, FileExistsError, FileNotFoundError) as e:
+            outdir.forget_all()
+            print(f"harv-jax: error: {e}", file=sys.stderr)
+            sys.exit(2)
+        except Exception as e:  # click/typer usage errors (typer vendors its own click)
+            outdir.forget_all()
+            if hasattr(e, "format_message") and hasattr(e, "exit_code"):
+                if e.format_message():
+                    print(f"harv-jax: error: {e.format_message()}", file=sys.stderr)
+                sys.exit(e.exit_code)
+            if type(e).__name__ == "Abort":
+                sys.exit(1)
+            raise
+    finally:  # the process ends here: its folders' locks go with it (also when main is called in-process)
+        runlock.release_all()
 
 
 if __name__ == "__main__":

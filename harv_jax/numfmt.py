@@ -7,6 +7,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from harv_jax import atomic
+
 #: Significant digits kept in JSON outputs: float32 carries about 7, so 6 keeps every meaningful one.
 JSON_DIGITS = 6
 
@@ -32,7 +34,7 @@ def round_floats(obj: Any, digits: int = JSON_DIGITS) -> Any:
 def write_json(path: str | Path, doc: Any, digits: int = JSON_DIGITS) -> Path:
     """Write ``doc`` as indented JSON with floats rounded to ``digits`` significant digits."""
     path = Path(path)
-    path.write_text(json.dumps(round_floats(doc, digits), indent=2) + "\n")
+    atomic.write_text(path, json.dumps(round_floats(doc, digits), indent=2) + "\n")
     return path
 
 

@@ -33,6 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import traverse_util
 
+from harv_jax import atomic
 from harv_jax.errors import UsageError
 from harv_jax.guards import MAX_LAYER_WIDTH, check_npz_archive
 from harv_jax.policy_stablehlo import export_available as export_available
@@ -139,9 +140,7 @@ def export_npz(path: str | Path, policy: Policy) -> Path:
         "obs_count": float(policy.normalizer.count) if normalized else 0.0,
     }
     arrays["meta"] = np.asarray(json.dumps(meta))
-    tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez(tmp, **arrays)
-    tmp.replace(path)
+    atomic.savez(path, **arrays)
     return path
 
 

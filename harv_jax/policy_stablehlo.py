@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import jax
 import jax.numpy as jnp
 
+from harv_jax import atomic
 from harv_jax.errors import UsageError
 
 if TYPE_CHECKING:
@@ -40,9 +41,7 @@ def export_stablehlo(path: str | Path, policy: Policy) -> Path:
     exported = jax.export.export(policy.deterministic)(spec)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(exported.serialize())
-    tmp.replace(path)
+    atomic.write_bytes(path, exported.serialize())
     return path
 
 

@@ -79,6 +79,19 @@ def is_held_by_other(folder: str | Path) -> dict[str, Any] | None:
     return None
 
 
+def command_line() -> str:
+    """This process's command line as a user typed it (``harv-jax train --out runs/x``)."""
+    if not sys.argv:
+        return "python"
+    name = Path(sys.argv[0]).name
+    return " ".join(["harv-jax" if name in ("cli.py", "harv-jax") else name, *sys.argv[1:]])
+
+
+def holds(folder: str | Path) -> bool:
+    """Whether this process holds ``folder``'s lock."""
+    return Path(folder).resolve() in _HELD
+
+
 def _in_use(folder: Path, flag: str, info: dict[str, Any]) -> UsageError:
     """The one-line error for a folder another live harv-jax process holds."""
     return UsageError(
@@ -127,7 +140,7 @@ def acquire(folder: str | Path, flag: str = "--out") -> FileLock:
     info = {
         "pid": os.getpid(),
         "host": socket.gethostname(),
-        "command": " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]) if sys.argv else "python",
+        "command": command_line(),
         "started_utc": time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()),
     }
     with contextlib.suppress(OSError):
@@ -148,6 +161,7 @@ def release(folder: str | Path) -> None:
 
 
 @atexit.register
-def _release_all() -> None:
+def release_all() -> None:
+    """Release every lock this process holds."""
     for folder in list(_HELD):
         release(folder)

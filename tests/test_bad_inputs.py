@@ -910,12 +910,13 @@ def test_force_replaces_only_a_marked_run_folder(monkeypatch, capsys, sandbox):
     assert cli_run(monkeypatch, capsys, *args)[0] == 0
     run = sandbox["cwd"] / "run"
     assert (run / MARKER).is_file() and (run / "trajectory.csv").is_file()
-    (run / "old_output.txt").write_text("from the first run")
     assert cli_run(monkeypatch, capsys, *args)[0] == 2  # not without --force
-    assert (run / "old_output.txt").exists()
+    from harv_jax.atomic import tmp_path
+
+    (run / tmp_path(run / "old_output.csv").name).write_text("left by a killed run")
     code, _, err = cli_run(monkeypatch, capsys, *args, "--force")
     assert code == 0, err
-    assert not (run / "old_output.txt").exists() and (run / MARKER).is_file()
+    assert not (run / tmp_path(run / "old_output.csv").name).exists() and (run / MARKER).is_file()
     assert (run / "trajectory.csv").is_file()
     before = _tree(sandbox["root"])
     for target in (".", "..", str(sandbox["foreign"]), str(sandbox["root"])):
@@ -932,12 +933,18 @@ def test_prepare_out_dir_api(tmp_path, monkeypatch):
     from harv_jax.outdir import MARKER, prepare_out_dir
 
     monkeypatch.chdir(tmp_path)
+    from harv_jax.atomic import write_text
+
     out = prepare_out_dir(tmp_path / "a" / "b")
     assert (out / MARKER).is_file()
-    (out / "x.txt").write_text("x")
+    write_text(out / "x.txt", "x")
     with pytest.raises(ValueError, match="not empty"):
         prepare_out_dir(out)
     assert prepare_out_dir(out, force=True) == out and not (out / "x.txt").exists()
+    (out / "mine.txt").write_text("mine")
+    with pytest.raises(ValueError, match="did not write: mine.txt"):
+        prepare_out_dir(out, force=True)
+    (out / "mine.txt").unlink()
     (out / MARKER).unlink()
     (out / "y.txt").write_text("y")
     with pytest.raises(ValueError, match="not written by harv-jax"):

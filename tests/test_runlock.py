@@ -16,7 +16,9 @@ import pytest
 from cli_util import cli_run
 
 from harv_jax import runlock
+from harv_jax.atomic import write_text
 from harv_jax.errors import UsageError
+from harv_jax.manifest import MANIFEST
 from harv_jax.outdir import MARKER, prepare_out_dir
 
 REPO = Path(__file__).resolve().parents[1]
@@ -25,9 +27,10 @@ REPO = Path(__file__).resolve().parents[1]
 HOLDER = textwrap.dedent(
     """
     import sys
+    from harv_jax.atomic import write_text
     from harv_jax.outdir import prepare_out_dir
     out = prepare_out_dir(sys.argv[1], force=len(sys.argv) > 2)
-    (out / "notes.md").write_text("mine")
+    write_text(out / "notes.md", "mine")
     print("ready", flush=True)
     sys.stdin.read()
     """
@@ -99,10 +102,10 @@ def test_a_killed_holders_stale_lock_is_named_and_taken_over(tmp_path, capsys):
 
 def test_lock_files_are_kept_when_force_empties_a_folder(tmp_path):
     run = prepare_out_dir(tmp_path / "run")
-    (run / "old.csv").write_text("x")
+    write_text(run / "old.csv", "x")
     runlock.release(run)
     run = prepare_out_dir(run, force=True)
-    assert sorted(p.name for p in run.iterdir()) == sorted([MARKER, *runlock.LOCK_FILES])
+    assert sorted(p.name for p in run.iterdir()) == sorted([MARKER, MANIFEST, *runlock.LOCK_FILES])
     assert json.loads((run / runlock.HOLDER_NAME).read_text())["pid"] == os.getpid()
     runlock.release(run)
 

@@ -58,7 +58,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.cli_options import check_fly_options, command_line, load_state_file, warn_loop_mismatch
         from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
         from harv_jax.guards import check_seed
-        from harv_jax.outdir import prepare_out_dir
+        from harv_jax.outdir import prepare_out_dir, read_paths
 
         names = parse_controllers(controller)
         check_seed(seed)
@@ -76,7 +76,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.evaluation.comparison import FIXED_STATE, compare, write_comparison
 
         fixed_state = FIXED_STATE if fixed_state is None else fixed_state
-        out_dir = prepare_out_dir(out, force)
+        out_dir = prepare_out_dir(out, force, read_paths(policy, state))
         comp = compare(
             names,
             policy,

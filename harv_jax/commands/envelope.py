@@ -157,7 +157,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
         from harv_jax.evaluation.envelope_study import envelope_study, write_envelope
         from harv_jax.guards import check_closed_loop_batch, check_seed
-        from harv_jax.outdir import prepare_out_dir
+        from harv_jax.outdir import prepare_out_dir, read_paths
 
         names = parse_controllers(controller)
         g = build_grid(grid, n, fixed)
@@ -168,7 +168,7 @@ def register(app: typer.Typer) -> None:
         for name in names:  # fail fast, before creating the output directory
             build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
         warn_loop_mismatch(names, policy, zeta)
-        out_dir = prepare_out_dir(out, force)
+        out_dir = prepare_out_dir(out, force, read_paths(policy))
         study = envelope_study(
             names,
             policy,

@@ -60,7 +60,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.cli_options import SCENARIOS, check_fly_options, load_state_file, warn_loop_mismatch
         from harv_jax.control.registry import ControllerOptions, build_controller
         from harv_jax.guards import check_seed
-        from harv_jax.outdir import prepare_out_dir
+        from harv_jax.outdir import prepare_out_dir, read_paths
         from harv_jax.task.spec import DT_S
 
         check_fly_options(controller, switching, target_alpha, duration, spin_s)
@@ -75,7 +75,7 @@ def register(app: typer.Typer) -> None:
 
         build_controller(controller, ControllerOptions(policy=policy, zeta=zeta, switching=switching))
         warn_loop_mismatch([controller], policy, zeta)
-        out_dir = prepare_out_dir(out, force)
+        out_dir = prepare_out_dir(out, force, read_paths(policy, scenario))
         res = fly_scenario(
             state,
             target_alpha,

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import typer
 
+from harv_jax import atomic
 from harv_jax.cli_options import aircraft_option, force_option, real_number, whole_number
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
@@ -50,7 +51,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.cli_options import SCENARIOS, check_mc_options, command_line, load_state_file
         from harv_jax.errors import UsageError
         from harv_jax.guards import check_seed
-        from harv_jax.outdir import check_out_dir
+        from harv_jax.outdir import check_out_dir, read_paths
 
         check_seed(seed)
         check_mc_options(runs, target_alpha, 60.0, None)
@@ -80,13 +81,13 @@ def register(app: typer.Typer) -> None:
                 check_demos_path(save_demos)
             except ValueError as e:
                 raise UsageError(str(e)) from None
-        check_out_dir(out, force)
+        check_out_dir(out, force, read_paths(scenario))
         # the heavy imports (jax) only after the arguments are checked: bad input fails fast
         from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT
         from harv_jax.optimal.outputs import build_summary, write_demos, write_optimal
         from harv_jax.optimal.search import SearchConfig, rounds_for
         from harv_jax.optimal.study import mc_scenario, optimal_study, spin_scenario, state_scenario
-        from harv_jax.outdir import prepare_out_dir
+        from harv_jax.outdir import prepare_out_dir, read_paths
         from harv_jax.report.optimal_section import optimal_markdown
 
         cfg = SearchConfig(
@@ -96,7 +97,7 @@ def register(app: typer.Typer) -> None:
             rounds=rounds_for(iterations),
             learning_rate=learning_rate,
         )
-        out_dir = prepare_out_dir(out, force)
+        out_dir = prepare_out_dir(out, force, read_paths(scenario))
         if scenario == "random":
             sc = mc_scenario(seed, runs, aircraft_name)
         elif scenario == "spin":
@@ -109,7 +110,7 @@ def register(app: typer.Typer) -> None:
         if scenario == "spin":
             summary["spin_s"] = spin_s
         write_optimal(out_dir, study, summary, cfg)
-        (out_dir / "optimal_report.md").write_text(optimal_markdown(summary))
+        atomic.write_text(out_dir / "optimal_report.md", optimal_markdown(summary))
         typer.echo(
             f"wrote {out_dir}/runs.csv, optimal_runs.csv, summary.json, vs_optimal.png, "
             "search_progress.png, optimal_report.md"

@@ -54,7 +54,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.control.registry import ControllerOptions, build_controller
         from harv_jax.guards import check_closed_loop_batch, check_seed
         from harv_jax.numfmt import fmt_num
-        from harv_jax.outdir import prepare_out_dir
+        from harv_jax.outdir import prepare_out_dir, read_paths
         from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
         names = list(QUICKSTART_CONTROLLERS)
@@ -69,7 +69,7 @@ def register(app: typer.Typer) -> None:
         for name in names:
             build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
         warn_loop_mismatch(names, policy, zeta)
-        out_dir = prepare_out_dir(out, force)
+        out_dir = prepare_out_dir(out, force, read_paths(policy))
         t0 = time.perf_counter()
         typer.echo(f"[quickstart] 1/3 spin comparison: 30 s developed spin, then {', '.join(names)} recover")
         prepare_out_dir(out_dir / "compare")  # with the run marker: --force may replace it later

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import typer
 
+from harv_jax import atomic
 from harv_jax.cli_options import (
     aircraft_option,
     controllers_help,
@@ -87,10 +88,10 @@ def register(app: typer.Typer) -> None:
         from harv_jax.evaluation.robustness import margins_table, robustness_sweep
         from harv_jax.evaluation.summary import controllers_setting
         from harv_jax.numfmt import write_json
-        from harv_jax.outdir import prepare_out_dir
+        from harv_jax.outdir import prepare_out_dir, read_paths
         from harv_jax.plots.robustness import plot_robustness
 
-        out_dir = prepare_out_dir(out, force)
+        out_dir = prepare_out_dir(out, force, read_paths(policy))
         doc = robustness_sweep(
             ctrls, runs, seed, levels, ALPHA_TARGET_RAD, duration, chunk, typer.echo, aircraft=aircraft_name
         )
@@ -98,6 +99,6 @@ def register(app: typer.Typer) -> None:
         doc["command"] = command_line()
         write_json(out_dir / "robustness.json", doc)
         plot_robustness(doc, out_dir)
-        (out_dir / "margins.md").write_text("\n".join(margins_table(doc)) + "\n")
+        atomic.write_text(out_dir / "margins.md", "\n".join(margins_table(doc)) + "\n")
         typer.echo("\n".join(margins_table(doc)))
         typer.echo(f"wrote {out_dir}/robustness.json, margins.md, robustness_<disturbance>.png")

@@ -111,6 +111,7 @@ def register(app: typer.Typer) -> None:
         aircraft_name: str | None = None,
     ) -> None:
         """Open-loop simulation with fixed controls: writes trajectory.csv and trajectory.png."""
+        from harv_jax import atomic
         from harv_jax.dynamics import CONTROL_NAMES, WIND_STATE_NAMES
         from harv_jax.guards import check_simulate
         from harv_jax.outdir import prepare_out_dir
@@ -130,7 +131,7 @@ def register(app: typer.Typer) -> None:
         out_dir = prepare_out_dir(out, force)
         t, cols = run_simulate(s, c, duration, dt, throttle, aircraft_name)
         names = ("t",) + WIND_STATE_NAMES + CONTROL_NAMES
-        np.savetxt(
+        atomic.savetxt(
             out_dir / "trajectory.csv",
             np.column_stack([t, cols]),
             delimiter=",",

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from harv_jax import atomic
 from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
 from harv_jax.evaluation.flight import FlightResult, fly
 from harv_jax.evaluation.paired import REFERENCE_CONTROLLER, paired_vs_smc, times_nr_at_run_s
@@ -213,7 +214,7 @@ def write_tables(
 ) -> None:
     """compare_metrics.csv and compare_metrics.md (``setting``: a sentence naming the policy, references
     and h0, printed above the table; ``vs_smc``: :attr:`Comparison.vs_smc`, a second table in the .md)."""
-    with (out_dir / "compare_metrics.csv").open("w", newline="") as f:
+    with atomic.open_atomic(out_dir / "compare_metrics.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=COMPARE_COLUMNS)
         w.writeheader()
         w.writerows([{k: ("" if r[k] is None else r[k]) for k in COMPARE_COLUMNS} for r in rows])
@@ -243,7 +244,7 @@ def write_tables(
             + "\n"
             + "".join(f"| {c} | " + " | ".join(_fmt(v[k]) for k in cols) + " |\n" for c, v in vs_smc.items())
         )
-    (out_dir / "compare_metrics.md").write_text("\n".join(lines) + "\n" + notes)
+    atomic.write_text(out_dir / "compare_metrics.md", "\n".join(lines) + "\n" + notes)
 
 
 def write_comparison(out_dir: Path, comp: Comparison, command: str) -> None:
@@ -254,7 +255,7 @@ def write_comparison(out_dir: Path, comp: Comparison, command: str) -> None:
     from harv_jax.plots.time_histories import plot_time_histories
 
     s = comp.settings
-    (out_dir / "fixed_state.json").write_text(json.dumps(s["fixed_state"], indent=2) + "\n")
+    atomic.write_text(out_dir / "fixed_state.json", json.dumps(s["fixed_state"], indent=2) + "\n")
     target_alpha, policy_name = s["target_alpha_rad"], s["policy"]
     learned = policy_name is not None
     for scen, flights in comp.flights.items():

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from harv_jax import atomic
 from harv_jax.control.base import Controller
 from harv_jax.control.registry import DEFAULT_ZETA
 from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
@@ -130,7 +131,7 @@ def write_grid_csv(path: Path, grid: EnvelopeGrid, maps: dict[str, EnvelopeMap])
         "terminal_beta_err_deg",
         "terminal_mu_err_deg",
     ]
-    with path.open("w", newline="") as f:
+    with atomic.open_atomic(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(header)
         for name, m in maps.items():
@@ -191,6 +192,6 @@ def write_envelope(out_dir: Path, study: EnvelopeStudy) -> None:
     arrays = {"x_values": grid.x_values, "y_values": grid.y_values, "x0_wind": grid_states(grid)}
     for name, m in maps.items():
         arrays.update({f"{name}/{field}": np.asarray(v) for field, v in m._asdict().items()})
-    np.savez_compressed(out_dir / "envelope_grid.npz", **arrays)
+    atomic.savez(out_dir / "envelope_grid.npz", compressed=True, **arrays)
     write_grid_csv(out_dir / "envelope_grid.csv", grid, maps)
     write_json(out_dir / "envelope.json", doc)

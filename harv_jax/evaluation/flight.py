@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from harv_jax import atomic
 from harv_jax.control.registry import DEFAULT_ZETA, ControllerOptions
 from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
 from harv_jax.task.spec import DT_S
@@ -257,7 +258,7 @@ def write_flight(out_dir: Path, res: FlightResult, settings: dict[str, Any]) -> 
         names += tuple(f"{n}_fb" for n in CONTROL_NAMES)
         cols_out += [hy["zeta"], hy["fallback"], hy["u_rl_rad"], hy["u_fb_rad"]]
         plot_hybrid(t, hy, out_dir / "hybrid.png", res.t_engage_s, res.u_cmd_rad)
-    np.savetxt(
+    atomic.savetxt(
         out_dir / "trajectory.csv",
         np.column_stack(cols_out),
         delimiter=",",

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from harv_jax import atomic
 from harv_jax.control.base import Controller
 from harv_jax.control.registry import DEFAULT_ZETA
 from harv_jax.evaluation.disturbance_spec import DisturbanceSpec, describe_disturbances
@@ -176,7 +177,7 @@ def write_runs_csv(
     if disturbances is not None and disturbances.active:
         header += ["noise_scale", "delay_ms", "gust_fps", "model_error", "actuator_lag_s"]
         extra = [f"{v:g}" for v in disturbances.levels.values()]
-    with path.open("w", newline="") as f:
+    with atomic.open_atomic(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(header)
         for name, out in outs.items():

@@ -34,6 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
+from harv_jax import atomic
+
 #: The format's name and version (a reader refuses any other).
 FORMAT_NAME = "harv_jax.optimal.demos"
 FORMAT_VERSION = 1
@@ -150,7 +152,7 @@ def save_demos(path: str | Path, demos: Demos) -> Path:
     """Write ``demos`` (validated first) to ``path`` in the format of the module docstring."""
     _validate({f.name: getattr(demos, f.name) for f in dataclasses.fields(demos)}, str(path))
     arrays = {f.name: np.asarray(getattr(demos, f.name)) for f in dataclasses.fields(demos)}
-    with open(path, "wb") as f:
+    with atomic.open_atomic(path, "wb") as f:
         np.savez_compressed(
             f, format=np.array(FORMAT_NAME), format_version=np.array(FORMAT_VERSION, np.int64), **arrays
         )

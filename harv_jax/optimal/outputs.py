@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from harv_jax import atomic
 from harv_jax.evaluation.paired import times_nr_at_run_s
 from harv_jax.optimal.search import SearchConfig
 from harv_jax.optimal.study import OPTIMAL, OptimalStudy
@@ -103,7 +104,7 @@ def write_optimal_runs_csv(path: Path, study: OptimalStudy, run_s: float) -> Non
     t = _times(study, run_s)
     names = list(t)
     searched = study.search.metrics
-    with path.open("w", newline="") as f:
+    with atomic.open_atomic(path, "w", newline="") as f:
         w = csv.writer(f)
         others = [n for n in names if n != OPTIMAL]
         w.writerow(

@@ -11,6 +11,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
+from harv_jax import atomic
 from harv_jax.aircraft.params import U_MAX_RAD, U_MIN_RAD  # noqa: E402
 from harv_jax.dynamics import CONTROL_NAMES  # noqa: E402
 from harv_jax.units import DEG_PER_RAD  # noqa: E402
@@ -79,7 +80,7 @@ def plot_hybrid(
     )
     fig.suptitle("hybrid: authority factor and the applied command split", y=0.995)
     fig.tight_layout(rect=(0, 0, 1, 0.92))
-    fig.savefig(path, dpi=90)
+    atomic.save_figure(fig, path, dpi=90)
     plt.close(fig)
 
 
@@ -100,5 +101,5 @@ def plot_sliding(
                 ax.axvline(t_marker_s, color="grey", ls=":", lw=0.8)
     fig.suptitle("sliding variables and tracking errors")
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    atomic.save_figure(fig, path, dpi=90)
     plt.close(fig)

@@ -13,6 +13,8 @@ import numpy as np  # noqa: E402
 from matplotlib.colors import BoundaryNorm, ListedColormap  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
+from harv_jax import atomic
+
 #: Colours of the ``Outcome`` codes 0..4 (RECOVERED, TIMEOUT, DEPARTED, GROUND_HIT, NONFINITE). TIMEOUT and
 #: DEPARTED (left the envelope on the way) are both "not recovered by the end of the run": amber and orange,
 #: not a red that reads as a loss -- a longer run may recover them.
@@ -41,7 +43,7 @@ def _axes_row(n: int, height_in: float = 4.4) -> tuple[plt.Figure, np.ndarray]:
 
 def _save(fig: plt.Figure, path: str | Path) -> Path:
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    atomic.save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path
 

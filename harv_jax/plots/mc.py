@@ -11,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from harv_jax import atomic
 from harv_jax.plots.time_histories import RUN_STYLES  # noqa: E402
 
 #: Percentiles of the Monte Carlo bands.
@@ -27,7 +28,7 @@ def write_bands_csv(t_s: np.ndarray, history_rad: np.ndarray, path: str | Path) 
     pct = band_percentiles(history_rad)
     names = [f"{y}_p{q}_deg" for y in ("alpha", "beta", "mu") for q in BAND_PERCENTILES]
     cols = [pct[j, :, i] for i in range(3) for j in range(len(BAND_PERCENTILES))]
-    np.savetxt(
+    atomic.savetxt(
         path,
         np.column_stack([t_s, *cols]),
         delimiter=",",
@@ -91,7 +92,7 @@ def plot_mc_bands(
     fig.suptitle(title or f"Monte Carlo bands (N = {history_rad.shape[0]})")
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    atomic.save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path
 
@@ -138,7 +139,7 @@ def plot_mc_bands_overlay(
     fig.suptitle(title or "Monte Carlo bands of all controllers")
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    atomic.save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path
 
@@ -226,6 +227,6 @@ def plot_terminal_errors(errors_deg: Mapping[str, np.ndarray], path: str | Path)
     fig.suptitle(f"terminal tracking errors per controller{note}", fontsize=9)
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    atomic.save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path

@@ -11,6 +11,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from harv_jax import atomic
+
 
 def plot_vs_optimal(
     t_optimal_s: np.ndarray, t_controllers_s: Mapping[str, np.ndarray], path: str | Path, title: str = ""
@@ -40,7 +42,7 @@ def plot_vs_optimal(
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    atomic.save_figure(fig, path, dpi=110)
     plt.close(fig)
     return Path(path)
 
@@ -69,6 +71,6 @@ def plot_search_progress(
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    atomic.save_figure(fig, path, dpi=110)
     plt.close(fig)
     return Path(path)

@@ -7,6 +7,8 @@ from typing import Any
 
 import numpy as np
 
+from harv_jax import atomic
+
 
 def _nan(v: float | None) -> float:
     return np.nan if v is None else float(v)
@@ -42,7 +44,7 @@ def plot_robustness(doc: dict[str, Any], out_dir: Path) -> list[Path]:
         axes[0].legend(fontsize=8)
         fig.suptitle(f"{name}: {doc['runs']} runs per level, seed {doc['seed']}")
         path = out_dir / f"robustness_{name}.png"
-        fig.savefig(path, dpi=110)
+        atomic.save_figure(fig, path, dpi=110)
         plt.close(fig)
         paths.append(path)
     return paths

@@ -11,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from harv_jax import atomic
 from harv_jax.units import DEG_PER_RAD  # noqa: E402
 
 _PANELS = (
@@ -145,6 +146,6 @@ def plot_time_histories(
         fig.suptitle(title, y=0.995)
     fig.tight_layout(rect=(0, 0, 1, 0.955))
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    atomic.save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path

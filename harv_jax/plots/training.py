@@ -7,6 +7,8 @@ from typing import Any
 
 import numpy as np
 
+from harv_jax import atomic
+
 
 def plot_training_curve(path: Path, history: list[dict[str, Any]], title: str) -> Path:
     """Mean episode return +- std over seeds vs env steps (the paper's reward-vs-steps figure)."""
@@ -45,6 +47,6 @@ def plot_training_curve(path: Path, history: list[dict[str, Any]], title: str) -
     ax.legend()
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    atomic.save_figure(fig, path, dpi=120)
     plt.close(fig)
     return path

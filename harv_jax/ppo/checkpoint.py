@@ -27,6 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import serialization
 
+from harv_jax import manifest
 from harv_jax.errors import UsageError
 from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo.config import PPOConfig
@@ -168,6 +169,7 @@ def save(
         f.flush()
         os.fsync(f.fileno())
     os.replace(tmp, final)
+    manifest.record(final)
     dir_fd = os.open(d, os.O_RDONLY)
     try:
         os.fsync(dir_fd)

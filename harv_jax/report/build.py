@@ -5,6 +5,7 @@ from __future__ import annotations
 import shlex
 from pathlib import Path
 
+from harv_jax import atomic
 from harv_jax.errors import UsageError
 from harv_jax.report.document import Doc, to_html, to_markdown
 from harv_jax.report.robustness_section import robustness_section
@@ -113,12 +114,15 @@ def build_report(
             f"(searched {MAX_DEPTH} levels of sub-directories)"
         )
     report_dir = _prepare(run_dir, out, force)
+    from harv_jax.outdir import note_incomplete
+
+    note_incomplete(run_dir)
     if report_cmd is None:
         report_cmd = f"harv-jax report {shlex.quote(str(run_dir))}"
         if report_dir.resolve() != run_dir.resolve():
             report_cmd += f" --out {shlex.quote(str(report_dir))}"
     doc = build_document(run_dir, sections, report_cmd)
     md_path, html_path = report_dir / REPORT_FILES[0], report_dir / REPORT_FILES[1]
-    md_path.write_text(to_markdown(doc, report_dir))
-    html_path.write_text(to_html(doc, f"harv-jax report: {run_dir.name}"))
+    atomic.write_text(md_path, to_markdown(doc, report_dir))
+    atomic.write_text(html_path, to_html(doc, f"harv-jax report: {run_dir.name}"))
     return md_path, html_path

@@ -18,6 +18,7 @@ from typing import Any
 import jax
 import numpy as np
 
+from harv_jax import atomic
 from harv_jax import policy as policy_api
 from harv_jax.env import EnvParams, settings
 from harv_jax.evaluation import seed_stats
@@ -41,8 +42,7 @@ def write_metrics_csv(path: Path, history: list[dict[str, Any]]) -> None:
     header = list(scalar)
     for k in names:
         header += [k, f"{k}_std"] + [f"{k}/seed{i}" for i in range(n_seeds)]
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "w", newline="") as f:
+    with atomic.open_atomic(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(header)
         for row in history:
@@ -53,7 +53,6 @@ def write_metrics_csv(path: Path, history: list[dict[str, Any]]) -> None:
                 out += [finite.mean() if finite.size else math.nan, finite.std() if finite.size else math.nan]
                 out += list(v)
             w.writerow([f"{x:.6g}" if isinstance(x, float | np.floating) else x for x in out])
-    tmp.replace(path)
 
 
 def _nanstat(fn: Callable[[np.ndarray], Any], v: np.ndarray) -> float:
@@ -145,7 +144,7 @@ def save_spin_bank(out_dir: Path, env_table: dict[str, Any], env_params: EnvPara
     if settings.spin_settings(nested["spin"]).reset_prob <= 0:
         return
     prov = settings.bank_provenance(settings.env_config(flat), nested)
-    np.savez(
+    atomic.savez(
         out_dir / "spin_bank.npz",
         x_wind=np.asarray(env_params.spin_states),
         delta_rad=np.asarray(env_params.spin_delta_rad),
@@ -235,4 +234,4 @@ def seed_verdict(seeds: dict[str, Any]) -> str:
 
 def write_summary(path: Path, summary: dict[str, Any]) -> None:
     """``summary.json`` (indented JSON)."""
-    path.write_text(json.dumps(summary, indent=2))
+    atomic.write_text(path, json.dumps(summary, indent=2))

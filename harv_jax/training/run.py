@@ -7,6 +7,7 @@ line and calls it): a fresh run or ``--resume``, the progress bar, the watchdog 
 from __future__ import annotations
 
 import math
+import shlex
 from pathlib import Path
 from typing import Any
 
@@ -73,6 +74,11 @@ def _progress(console: Any) -> Any:
     )
 
 
+def resume_command(out: str | Path) -> str:
+    """The command that continues the training run in ``out``."""
+    return f"harv-jax train --resume {shlex.quote(str(out))}"
+
+
 def run_train(
     preset: str | None,
     overrides: dict[str, Any],
@@ -102,7 +108,7 @@ def run_train(
         raise UsageError(f"--target-recovery {target_recovery} must be in (0, 1]")
     from harv_jax import runlock
     from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT
-    from harv_jax.outdir import check_out_dir
+    from harv_jax.outdir import adopt, check_out_dir, read_paths
     from harv_jax.ppo import checkpoint
     from harv_jax.ppo import config as ppo_config
     from harv_jax.training import time_to_go
@@ -134,6 +140,7 @@ def run_train(
         out_dir = Path(resume)
         runlock.acquire(out_dir, "--resume")  # refused while another harv-jax process writes there
         checkpoint.remove_stale_tmp(out_dir / "checkpoints")  # left by a save that was killed
+        adopt(out_dir, resume_command(out_dir))
     else:
         if out is None:
             raise UsageError("--out DIR is required (or --resume DIR)")
@@ -143,7 +150,8 @@ def run_train(
             env_table = {**env_table, LOOP_KEY: parse_loop(in_loop)}
         env_table = {**env_table, "aircraft": aircraft or env_table.get("aircraft", DEFAULT_AIRCRAFT)}
         env_table = time_to_go.pin_file_digest(env_table)  # --resume refuses the file if it changes
-        check_out_dir(out, force)  # a bad --out fails before the env is built
+        reads = read_paths(preset, init_policy, overrides.get("demos"), env_table.get(time_to_go.FILE_KEY))
+        check_out_dir(out, force, reads)  # a bad --out fails before the env is built
     loop = split_loop(env_table)[0]
 
     import jax
@@ -164,7 +172,7 @@ def run_train(
     setup = build_training(cfg, env_table, fresh_init, plan.demos_sha256 if plan is not None else None)
     env_params, trainer = setup.env_params, setup.trainer
     if resume is None:
-        out_dir = prepare_out_dir(out, force)
+        out_dir = prepare_out_dir(out, force, reads, resume_command=resume_command(out))
         write_run_record(
             out_dir,
             preset or DEFAULT_PRESET,

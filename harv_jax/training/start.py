@@ -13,6 +13,7 @@ from typing import Any, NamedTuple
 
 import jax
 
+from harv_jax import atomic
 from harv_jax.env import Env, EnvParams
 from harv_jax.env.episode_metrics import harv_episode_metrics
 from harv_jax.errors import UsageError
@@ -131,5 +132,5 @@ def write_run_record(
         record["demos"] = demos.record()
     if target_recovery is not None:
         record["target_recovery"] = target_recovery
-    (out_dir / "config.json").write_text(json.dumps(record, indent=2))
+    atomic.write_text(out_dir / "config.json", json.dumps(record, indent=2))
     save_spin_bank(out_dir, env_table, env_params)
