@@ -8,19 +8,17 @@ from __future__ import annotations
 
 import functools
 import inspect
-import json
 import math
 import shlex
 import sys
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from typing import Any
 
 import typer
 
-from harv_jax.control.registry import DEFAULT_ZETA
+from harv_jax.control.registry import DEFAULT_ZETA, ControllerOptions
 from harv_jax.errors import UsageError
-from harv_jax.task.spec import ALPHA_MAX_RAD, ALPHA_MIN_RAD, DT_S, H0_FT
+from harv_jax.task.spec import ALPHA_MAX_RAD, ALPHA_MIN_RAD, RECOVERY_HOLD_S
 
 POLICY_HELP = (
     "rl/hybrid policy: run folder, .npz, checkpoint\\[@seed], shipped:teacher (default), shipped:fast, "
@@ -33,24 +31,6 @@ ZETA_HELP = (
 MAX_RUNS = 1_000_000
 MAX_DURATION_S = 600.0
 SWITCHING = ("sat", "sign")
-#: Built-in scenarios of ``fly`` (anything else is a state file).
-SCENARIOS = ("spin", "random")
-REQUIRED_STATE_NAMES = ("V", "alpha", "beta", "p", "q", "r", "mu", "gamma")
-#: Physically meaningful initial states (name -> (low, high, unit)): speeds up to about Mach 2.7, body rates
-#: beyond any spin or tumble of this aircraft excluded, altitudes inside the atmosphere model (troposphere
-#: and lower stratosphere, 20 km).
-STATE_LIMITS = {
-    "V": (1.0, 3000.0, "ft/s"),
-    "alpha": (-math.pi, math.pi, "rad"),
-    "beta": (-1.5707, 1.5707, "rad"),
-    "p": (-10.0, 10.0, "rad/s"),
-    "q": (-10.0, 10.0, "rad/s"),
-    "r": (-10.0, 10.0, "rad/s"),
-    "mu": (-2 * math.pi, 2 * math.pi, "rad"),
-    "gamma": (-math.pi / 2, math.pi / 2, "rad"),
-    "chi": (-2 * math.pi, 2 * math.pi, "rad"),
-    "h": (0.0, 65_000.0, "ft"),
-}
 
 
 def whole_number(text: str) -> int:
@@ -77,8 +57,20 @@ def policy_option():
 
 
 def zeta_option():
-    """``--zeta`` (default ``registry.DEFAULT_ZETA``)."""
-    return typer.Option(DEFAULT_ZETA, help=ZETA_HELP)
+    """``--zeta`` (default None: ``registry.DEFAULT_ZETA``, see :func:`controller_options`)."""
+    return typer.Option(None, help=ZETA_HELP + f" Default {DEFAULT_ZETA}.", show_default=False)
+
+
+def controller_options(
+    names: Sequence[str], policy: str | None, zeta: str | None, switching: str | None = None
+) -> ControllerOptions:
+    """The controller options of a command; UsageError if one was given that none of the controllers
+    ``names`` reads (``registry.check_options_apply``). Options not given take their defaults."""
+    from harv_jax.control.registry import check_options_apply
+
+    given = {"policy": policy, "zeta": zeta, "switching": switching}
+    check_options_apply(names, {k: v for k, v in given.items() if v is not None})
+    return ControllerOptions(policy=policy, zeta=zeta or DEFAULT_ZETA, switching=switching or "sat")
 
 
 def force_option(what: str = "non-empty output directory"):
@@ -112,6 +104,16 @@ def command_line() -> str:
     return "harv-jax " + " ".join(shlex.quote(a) for a in sys.argv[1:])
 
 
+def check_duration(duration: float) -> None:
+    """``--duration`` of a closed-loop command: longer than the recovery criterion's hold (a shorter run
+    could never be scored recovered) and at most :data:`MAX_DURATION_S`."""
+    if not (math.isfinite(duration) and RECOVERY_HOLD_S < duration <= MAX_DURATION_S):
+        raise UsageError(
+            f"--duration {duration} s: allowed ({RECOVERY_HOLD_S:g}, {MAX_DURATION_S:g}] s (longer than the "
+            f"recovery criterion's {RECOVERY_HOLD_S:g} s hold, or no run could be scored recovered)"
+        )
+
+
 def check_mc_options(runs: int, target_alpha: float, duration: float, chunk: int | None) -> None:
     """One-line UsageErrors for out-of-range numeric flags of ``mc``, ``envelope`` and ``quickstart``."""
     if not 1 <= runs <= MAX_RUNS:
@@ -120,14 +122,13 @@ def check_mc_options(runs: int, target_alpha: float, duration: float, chunk: int
         raise UsageError(
             f"--target-alpha {target_alpha} rad is outside the envelope [{ALPHA_MIN_RAD}, {ALPHA_MAX_RAD}]"
         )
-    if not (math.isfinite(duration) and 1.0 <= duration <= MAX_DURATION_S):
-        raise UsageError(f"--duration {duration} s must be in [1, {MAX_DURATION_S:g}]")
+    check_duration(duration)
     if chunk is not None and chunk < 1:
         raise UsageError(f"--chunk {chunk} must be >= 1")
 
 
 def check_fly_options(
-    controller: str, switching: str, target_alpha: float, duration: float, spin_s: float
+    controller: str, switching: str | None, target_alpha: float, duration: float, spin_s: float
 ) -> None:
     """UsageError (one line naming the value and what is allowed) for a bad ``fly``/``compare`` option."""
     from harv_jax.control.registry import controller_names, split_filter
@@ -135,112 +136,14 @@ def check_fly_options(
     names = controller_names()
     if split_filter(controller)[0] not in names:
         raise UsageError(f"--controller {controller!r} is unknown; allowed: {', '.join(names)}")
-    if switching not in SWITCHING:
+    if switching is not None and switching not in SWITCHING:
         raise UsageError(f"--switching {switching!r} is unknown; allowed: {', '.join(SWITCHING)}")
     lo, hi = ALPHA_MIN_RAD, ALPHA_MAX_RAD
     if not (math.isfinite(target_alpha) and lo <= target_alpha <= hi):
         raise UsageError(f"--target-alpha {target_alpha} rad is outside [{lo}, {hi}]")
-    if not (math.isfinite(duration) and 0 < duration <= MAX_DURATION_S):
-        raise UsageError(f"--duration {duration} must be in (0, {MAX_DURATION_S:g}] s")
-    if round(duration / DT_S) < 2:
-        raise UsageError(f"--duration {duration} s is shorter than two steps of {DT_S} s")
+    check_duration(duration)
     if not (math.isfinite(spin_s) and 0 <= spin_s <= MAX_DURATION_S):
         raise UsageError(f"--spin-s {spin_s} must be in [0, {MAX_DURATION_S:g}] s")
-
-
-def validate_state(state: dict[str, float]) -> None:
-    """Raise UsageError for a physically meaningless initial state (outside :data:`STATE_LIMITS`)."""
-    for name, v in state.items():
-        if name not in STATE_LIMITS:
-            continue
-        lo, hi, unit = STATE_LIMITS[name]
-        if not (math.isfinite(v) and lo <= v <= hi):
-            raise UsageError(f"state {name}={v} {unit} is outside the allowed [{lo:g}, {hi:g}] {unit}")
-
-
-#: Columns a state file may hold besides the state: those of a ``harv-jax simulate`` trajectory.csv (ignored).
-IGNORED_STATE_COLUMNS = ("t", "de", "da", "dr")
-
-
-def _read_state_raw(path: Path) -> dict:
-    name = str(path)
-    if path.suffix.lower() not in (".json", ".csv"):
-        raise UsageError(f"state file {name!r} must end in .json or .csv")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise UsageError(f"state file {name!r} is not UTF-8 text; expected JSON or CSV") from None
-    except OSError as e:
-        raise UsageError(f"state file {name!r} cannot be read ({e.strerror or type(e).__name__})") from None
-    if not text.strip():
-        raise UsageError(f"state file {name!r} is empty; needs {', '.join(REQUIRED_STATE_NAMES)}")
-    if path.suffix.lower() == ".json":
-        try:
-            raw = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise UsageError(f"state file {name!r} is not valid JSON: {e.msg}") from None
-        except RecursionError:
-            raise UsageError(f"state file {name!r} is nested too deeply; expected {{name: value}}") from None
-        if not isinstance(raw, dict):
-            raise UsageError(f"state file {name!r} must hold a JSON object of name: value")
-        for k, v in raw.items():
-            if isinstance(v, bool) or not isinstance(v, int | float):
-                raise UsageError(f"state file {name!r}: {k}={v!r} is not a number")
-        return raw
-    lines = [ln for ln in text.splitlines() if ln.strip()]
-    if len(lines) < 2:
-        raise UsageError(f"state file {name!r} needs a header row and a data row")
-    names = [s.strip() for s in lines[0].split(",")]
-    values = [s.strip() for s in lines[1].split(",")]
-    if len(values) != len(names):
-        raise UsageError(f"state file {name!r}: {len(names)} header names but {len(values)} values")
-    if len(set(names)) != len(names):
-        raise UsageError(f"state file {name!r}: a header name appears twice ({', '.join(names)})")
-    return dict(zip(names, values, strict=True))
-
-
-def load_state_file(path: Path) -> dict[str, float]:
-    """Initial wind state from a JSON object or a CSV with a header row (first data row is used).
-
-    Required names: V, alpha, beta, p, q, r, mu, gamma (ft/s, rad, rad/s); optional chi (rad, 0) and
-    h (ft, 25,000). The columns t, de, da, dr of a ``harv-jax simulate`` trajectory.csv are ignored; any other
-    name, a missing one, a value that is not a finite number or a state outside :data:`STATE_LIMITS` is a
-    UsageError.
-    """
-    if not path.is_file():
-        raise UsageError(
-            f"--scenario {str(path)!r} is neither {' nor '.join(SCENARIOS)} nor an existing file"
-        )
-    raw = _read_state_raw(path)
-    state = {"chi": 0.0, "h": H0_FT}
-    known = (*REQUIRED_STATE_NAMES, "chi", "h")
-    unknown = [n for n in raw if n not in known and n not in IGNORED_STATE_COLUMNS]
-    if unknown:
-        raise UsageError(
-            f"state file {str(path)!r}: unknown name {unknown[0]!r}; allowed: {', '.join(known)} "
-            f"(and {', '.join(IGNORED_STATE_COLUMNS)}, ignored)"
-        )
-    missing = [n for n in REQUIRED_STATE_NAMES if n not in raw]
-    if missing:
-        raise UsageError(
-            f"state file {str(path)!r} lacks {', '.join(missing)}; needs {', '.join(REQUIRED_STATE_NAMES)}"
-        )
-    for name in known:
-        if name not in raw:
-            continue
-        try:
-            v = float(raw[name])
-        except (TypeError, ValueError):
-            raise UsageError(f"state file {str(path)!r}: {name}={raw[name]!r} is not a number") from None
-        except OverflowError:  # an integer beyond any float
-            v = math.inf
-        if not math.isfinite(v):
-            raise UsageError(f"state file {str(path)!r}: {name}={raw[name]} is not finite")
-        state[name] = v
-    validate_state(state)
-    if state["h"] <= 0:
-        raise UsageError(f"state file {str(path)!r}: h={state['h']} ft must be > 0")
-    return state
 
 
 def warn_loop_mismatch(names: Sequence[str], policy: str | None, zeta: str) -> None:

@@ -160,7 +160,7 @@ def _runs(path) -> list[dict[str, str]]:
 
 def test_mc_flies_the_registered_aircraft(heavy, hold, monkeypatch, capsys, tmp_path):
     """Same seed, same initial states; the heavy aircraft flies another trajectory, recorded by name."""
-    args = ("--controller", hold, "--runs", "4", "--duration", "1", "--seed", "3")
+    args = ("--controller", hold, "--runs", "4", "--duration", "10.5", "--seed", "3")
     for name in ("harv", heavy):
         code, _, err = cli_run(monkeypatch, capsys, "mc", *args, "--aircraft", name, "--out", tmp_path / name)
         assert code == 0, err
@@ -172,7 +172,7 @@ def test_mc_flies_the_registered_aircraft(heavy, hold, monkeypatch, capsys, tmp_
 
 @pytest.mark.slow
 def test_compare_flies_the_registered_aircraft(heavy, hold, monkeypatch, capsys, tmp_path):
-    args = ("--controller", hold, "--spin-s", "0", "--duration", "1", "--seed", "3")
+    args = ("--controller", hold, "--spin-s", "0", "--duration", "10.5", "--seed", "3")
     for name in ("harv", heavy):
         out = tmp_path / name
         code, _, err = cli_run(monkeypatch, capsys, "compare", *args, "--aircraft", name, "--out", out)

@@ -70,7 +70,11 @@ BAD_PRESETS: dict[str, tuple[str | bytes | None, str]] = {
     "ppo_lr_huge": ("[ppo]\nlr = 1e30\n", "--lr 1e+30"),
     "ppo_log_std": ("[ppo]\ninit_log_std = 100.0\n", "--init-log-std 100.0"),
     "ppo_steps_huge": ("[ppo]\ntotal_steps = 9_000_000_000_000_000_000\n", "--steps 9000000000000000000"),
-    "ppo_steps_optimizer": ("[ppo]\ntotal_steps = 1_000_000_000_000\n", "optimizer steps"),
+    "ppo_steps_max": ("[ppo]\ntotal_steps = 1_000_000_000_000\n", "past the maximum"),
+    "ppo_steps_optimizer": (
+        "[ppo]\ntotal_steps = 10_000_000_000\nnum_envs = 8\nunroll = 8\nminibatches = 1\nepochs = 100\n",
+        "optimizer steps",
+    ),
     "ppo_num_envs_huge": ("[ppo]\nnum_envs = 100_000_000\n", "--num-envs 100,000,000"),
     "ppo_epochs_huge": ("[ppo]\nepochs = 100_000\n", "--epochs 100000"),
     "ppo_seed_negative": ("[ppo]\nseed = -1\n", "--seed -1"),
@@ -309,7 +313,11 @@ CASES: list[tuple[list[str], str]] = [
     (["fly", "--duration", "inf"], "--duration inf"),
     (["fly", "--duration", "0"], "--duration 0.0"),
     (["fly", "--duration", "-5"], "--duration -5.0"),
-    (["fly", "--duration", "0.005"], "shorter than two steps"),
+    (["fly", "--duration", "0.005"], "criterion's 10 s hold"),
+    (["fly", "--duration", "10"], "--duration 10.0 s: allowed (10, 600] s"),
+    (["fly", "--controller", "rl", "--switching", "sign"], "--switching 'sign' applies only to smc,"),
+    (["fly", "--controller", "smc", "--policy", "shipped:fast"], "--policy 'shipped:fast' applies only"),
+    (["fly", "--controller", "rl", "--zeta", "gated"], "--zeta 'gated' applies only to hybrid"),
     (["fly", "--scenario", "nofile.json"], "nofile.json"),
     (["fly", "--switching", "foo"], "--switching"),
     (["fly", "--spin-s", "-1"], "--spin-s"),
@@ -342,6 +350,9 @@ CASES: list[tuple[list[str], str]] = [
     (["mc", "--duration", "inf"], "--duration inf"),
     (["mc", "--duration", "0"], "--duration 0.0"),
     (["mc", "--duration", "-60"], "--duration -60.0"),
+    (["mc", "--duration", "9"], "longer than the recovery criterion's 10 s hold"),
+    (["mc", "--controller", "smc,smc-brake", "--policy", "shipped:fast"], "--controller smc,smc-brake flies"),
+    (["mc", "--controller", "smc,rl", "--zeta", "always"], "--zeta 'always' applies only to hybrid"),
     (["mc", "--target-alpha", "nan"], "--target-alpha"),
     (["mc", "--target-alpha", "-inf"], "--target-alpha -inf"),
     (["mc", "--target-alpha", "3"], "--target-alpha 3.0"),
@@ -367,6 +378,8 @@ CASES: list[tuple[list[str], str]] = [
     (["compare", "--duration", "nan"], "--duration nan"),
     (["compare", "--duration", "inf"], "--duration inf"),
     (["compare", "--duration", "-1"], "--duration -1.0"),
+    (["compare", "--duration", "9.5"], "criterion's 10 s hold"),
+    (["compare", "--controller", "smc", "--zeta", "gated"], "--zeta 'gated' applies only to hybrid"),
     (["compare", "--spin-s", "-1"], "--spin-s -1.0"),
     (["compare", "--spin-s", "nan"], "--spin-s nan"),
     (["compare", "--target-alpha", "nan"], "--target-alpha nan"),
@@ -396,6 +409,8 @@ CASES: list[tuple[list[str], str]] = [
     (["envelope", "--duration", "1e7"], "--duration"),
     (["envelope", "--duration", "nan"], "--duration nan"),
     (["envelope", "--duration", "0"], "--duration 0.0"),
+    (["envelope", "--duration", "5"], "criterion's 10 s hold"),
+    (["envelope", "--controller", "smc", "--policy", "shipped:fast"], "--policy 'shipped:fast' applies only"),
     (["envelope", "--target-alpha", "inf"], "--target-alpha inf"),
     (["envelope", "--target-alpha", "0.3rad"], "'0.3rad' is not a number"),
     (["envelope", "--chunk", "0"], "--chunk 0"),
@@ -415,6 +430,7 @@ CASES: list[tuple[list[str], str]] = [
     (["train", "--preset", "smoke", "--steps", "1000000000000", "--out", "newrun"], "--steps"),
     (["train", "--steps", "100000000000000000", "--out", "newrun"], "--steps 100000000000000000"),
     (["train", "--steps", "0", "--out", "newrun"], "--steps"),
+    (["train", "--steps", "1000000000000", "--out", "newrun"], "past the maximum of 10,000,000,000"),
     (["train", "--steps", "-1", "--out", "newrun"], "--steps -1"),
     (["train", "--steps", "nan", "--out", "newrun"], "'nan' is not a whole number"),
     (["train", "--num-envs", "100000000", "--out", "newrun"], "--num-envs"),
@@ -501,6 +517,8 @@ CASES: list[tuple[list[str], str]] = [
     (["mc", "--controller-knows-aircraft"], "randomized aircraft"),
     (["robustness", "--disturbances", "wind"], "--disturbances 'wind'"),
     (["robustness", "--disturbances", "gust,gust"], "each once"),
+    (["robustness", "--duration", "3"], "criterion's 10 s hold"),
+    (["robustness", "--controller", "smc", "--zeta", "never"], "--zeta 'never' applies only to hybrid"),
     (["robustness", "--noise-levels", "1,x"], "'x' is not a number"),
     (["robustness", "--noise-levels", "-1"], "--noise-levels"),
     (["robustness", "--delay-levels", "0,0"], "twice"),
@@ -845,7 +863,7 @@ def test_load_preset_raises_one_line_value_error(bad_presets, name):
 
 @pytest.mark.parametrize("name", list(BAD_STATES))
 def test_load_state_file_raises_one_line_value_error(tmp_path, name):
-    from harv_jax.cli_options import load_state_file
+    from harv_jax.state_file import load_state_file
 
     file_name, content, needle = BAD_STATES[name]
     f = tmp_path / file_name
@@ -997,8 +1015,11 @@ def test_seed_and_train_guards_raise_before_anything_is_built():
         check_simulate(1e7, 0.01)
     check_simulate(60.0, 0.01)
     check_closed_loop_batch(1000, 6000, 10, 250, 3)
-    with pytest.raises(ValueError, match="optimizer steps"):
+    with pytest.raises(ValueError, match="past the maximum"):
         ppo_config.from_dict({"total_steps": 10**12})
+    with pytest.raises(ValueError, match="optimizer steps"):
+        big = {"total_steps": 10**10, "num_envs": 8, "unroll": 8, "minibatches": 1, "epochs": 100}
+        ppo_config.from_dict(big)
     with pytest.raises(ValueError, match="--num-envs"):
         ppo_config.from_dict({"num_envs": 10**8})
     for name in ("smoke", "paper-partial", "paper-full"):
@@ -1013,11 +1034,12 @@ def test_version(monkeypatch, capsys):
 
 
 def test_hybrid_config_default_is_the_cli_default():
-    from harv_jax.cli_options import zeta_option
+    from harv_jax.cli_options import controller_options, zeta_option
     from harv_jax.control.hybrid import HybridConfig
     from harv_jax.control.registry import DEFAULT_ZETA, ControllerOptions
 
-    assert HybridConfig().schedule == DEFAULT_ZETA == zeta_option().default == ControllerOptions().zeta
+    assert HybridConfig().schedule == DEFAULT_ZETA == ControllerOptions().zeta
+    assert zeta_option().default is None and controller_options(["hybrid"], None, None).zeta == DEFAULT_ZETA
     assert DEFAULT_ZETA == "simplex"
 
 

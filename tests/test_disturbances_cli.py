@@ -12,7 +12,7 @@ from tests.cli_util import cli_run
 def test_mc_records_disturbances_and_zero_levels_equal_none(monkeypatch, capsys, tmp_path, damper):
     """A cheap feedback controller (the SMC's compile adds nothing to the command's handling of the flags):
     it reads the measured state, so sensor noise would reach its flights."""
-    base = ["--controller", damper, "--runs", "3", "--duration", "1", "--seed", "5"]
+    base = ["--controller", damper, "--runs", "3", "--duration", "10.5", "--seed", "5"]
     code, _, err = cli_run(monkeypatch, capsys, "mc", *base, "--out", tmp_path / "none")
     assert code == 0, err
     code, _, err = cli_run(
@@ -28,14 +28,14 @@ def test_mc_records_disturbances_and_zero_levels_equal_none(monkeypatch, capsys,
 @pytest.mark.slow  # two compiles of 30-60 s on the 2-core CI machine
 def test_fly_and_envelope_take_disturbances(monkeypatch, capsys, tmp_path):
     code, _, err = cli_run(
-        monkeypatch, capsys, "fly", "--scenario", "random", "--duration", "2", "--disturbances", "gust,model",
-        "--out", tmp_path / "fly",
+        monkeypatch, capsys, "fly", "--scenario", "random", "--duration", "11",
+        "--disturbances", "gust,model", "--out", tmp_path / "fly",
     )  # fmt: skip
     assert code == 0, err
     metrics = json.loads((tmp_path / "fly" / "metrics.json").read_text())
     assert metrics["disturbances"]["active"] == ["gust", "model"]
     code, _, err = cli_run(
-        monkeypatch, capsys, "envelope", "--n", "2", "--duration", "2", "--disturbances", "delay",
+        monkeypatch, capsys, "envelope", "--n", "2", "--duration", "10.5", "--disturbances", "delay",
         "--delay-ms", "50", "--out", tmp_path / "env",
     )  # fmt: skip
     assert code == 0, err

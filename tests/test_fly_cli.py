@@ -10,7 +10,7 @@ from cli_util import cli_run
 
 from harv_jax.task.criteria import OUTCOME_NAMES
 
-DURATION = "0.5"  # s: the flights only exercise the command; the 60 s results are in experiments/
+DURATION = "10.5"  # s: just past the criterion's hold; the 60 s results are in experiments/
 
 
 def _run(monkeypatch, capsys, *args):
@@ -26,8 +26,8 @@ def _run(monkeypatch, capsys, *args):
         (["--controller", "pid"], "--controller 'pid' is unknown"),
         (["--target-alpha", "2.0"], "--target-alpha 2.0 rad is outside"),
         (["--target-alpha", "nan"], "--target-alpha nan"),
-        (["--duration", "-1"], "--duration -1.0 must be in"),
-        (["--duration", "0.001"], "shorter than two steps"),
+        (["--duration", "-1"], "--duration -1.0 s: allowed"),
+        (["--duration", "0.001"], "criterion's 10 s hold"),
         (["--switching", "tanh"], "--switching 'tanh' is unknown"),
         (["--scenario", "nowhere.json"], "is neither spin nor random nor an existing file"),
         (["--spin-s", "-3"], "--spin-s -3.0 must be in"),
@@ -115,7 +115,8 @@ def test_fly_random_and_state_file(monkeypatch, capsys, tmp_path):
     )
     assert code == 0, err
     data_f, _, _ = _check_outputs(tmp_path / "f", 50)
-    np.testing.assert_allclose(data_f, data, rtol=1e-5, atol=1e-5)
+    assert data_f.shape == data.shape  # the first 0.5 s: later, the state file's float32 rounding grows
+    np.testing.assert_allclose(data_f[:50], data[:50], rtol=1e-5, atol=1e-5)
 
 
 @pytest.mark.slow

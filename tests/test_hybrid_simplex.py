@@ -260,7 +260,7 @@ def test_mc_cli_reports_the_hand_overs(tmp_path, kind):
     pol = write_fixture_policies(tmp_path)[kind]
     out = tmp_path / "mc"
     args = ["mc", "--controller", "hybrid", "--zeta", "simplex", "--policy", str(pol), "--runs", "2",
-            "--duration", "1", "--chunk", "2", "--out", str(out)]  # fmt: skip
+            "--duration", "10.5", "--chunk", "2", "--out", str(out)]  # fmt: skip
     r = CliRunner().invoke(app, args, standalone_mode=False)
     assert r.exception is None, r.output
     s = json.loads((out / "summary.json").read_text())

@@ -129,7 +129,7 @@ def test_cli_in_loop_policy_records_its_loop_and_mc_warns(tmp_path):
     meta = json.loads(str(np.load(out / "policy" / "policy.npz", allow_pickle=False)["meta"]))
     assert meta["loop"] == "hybrid:gated"
 
-    mc = [sys.executable, "-m", "harv_jax.cli", "mc", "--runs", "2", "--duration", "1", "--chunk", "2",
+    mc = [sys.executable, "-m", "harv_jax.cli", "mc", "--runs", "2", "--duration", "10.5", "--chunk", "2",
           "--policy", str(out / "policy" / "policy.npz")]  # fmt: skip
     r = subprocess.run(mc + ["--controller", "rl", "--out", str(tmp_path / "mc1")], capture_output=True,
                        text=True, cwd=REPO, timeout=900)  # fmt: skip

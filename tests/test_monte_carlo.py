@@ -165,8 +165,8 @@ def test_bad_flags_one_line_error(tmp_path, args, fragment):
 def test_cli_writes_outputs_and_refuses_existing_dir(tmp_path, damper):
     """The files of ``mc`` (a cheap registered controller: the point is the outputs, not the SMC)."""
     out = tmp_path / "mc"
-    args = ["mc", "--controller", damper, "--runs", "8", "--duration", "3", "--chunk", "8", "--out", str(out),
-            "--save-trajectories"]  # fmt: skip
+    args = ["mc", "--controller", damper, "--runs", "8", "--duration", "11", "--chunk", "8",
+            "--out", str(out), "--save-trajectories"]  # fmt: skip
     r = CliRunner().invoke(app, args, standalone_mode=False)
     assert r.exception is None, r.output
     # the bands are the numpy percentiles of the saved trajectories

@@ -62,7 +62,7 @@ def test_unknown_controller_names_the_registered_ones():
 def test_fly_flies_the_toy(toy, monkeypatch, capsys, tmp_path):
     out = tmp_path / "fly"
     code, _, err = cli_run(
-        monkeypatch, capsys, "fly", "--controller", toy, "--scenario", "random", "--duration", "0.5",
+        monkeypatch, capsys, "fly", "--controller", toy, "--scenario", "random", "--duration", "10.5",
         "--out", out,
     )  # fmt: skip
     assert code == 0, err
@@ -79,7 +79,7 @@ def test_fly_flies_the_toy(toy, monkeypatch, capsys, tmp_path):
 def test_mc_flies_the_toy(toy, monkeypatch, capsys, tmp_path):
     out = tmp_path / "mc"
     code, _, err = cli_run(
-        monkeypatch, capsys, "mc", "--controller", toy, "--runs", "4", "--duration", "1",
+        monkeypatch, capsys, "mc", "--controller", toy, "--runs", "4", "--duration", "10.5",
         "--chunk", "4", "--out", out,
     )  # fmt: skip
     assert code == 0, err
@@ -92,7 +92,7 @@ def test_mc_flies_the_toy(toy, monkeypatch, capsys, tmp_path):
 def test_compare_flies_the_toy(toy, monkeypatch, capsys, tmp_path):
     out = tmp_path / "cmp"
     code, _, err = cli_run(
-        monkeypatch, capsys, "compare", "--controller", toy, "--duration", "0.5", "--spin-s", "0",
+        monkeypatch, capsys, "compare", "--controller", toy, "--duration", "10.5", "--spin-s", "0",
         "--out", out,
     )  # fmt: skip
     assert code == 0, err

@@ -55,12 +55,19 @@ def register(app: typer.Typer) -> None:
         aircraft_name: str | None = None,
     ) -> None:
         """RL vs SMC vs hybrid on the spin and a fixed state: overlaid histories, metrics table (md, csv)."""
-        from harv_jax.cli_options import check_fly_options, command_line, load_state_file, warn_loop_mismatch
+        from harv_jax.cli_options import (
+            check_fly_options,
+            command_line,
+            controller_options,
+            warn_loop_mismatch,
+        )
         from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
         from harv_jax.guards import check_seed
         from harv_jax.outdir import prepare_out_dir, read_paths
+        from harv_jax.state_file import load_state_file
 
         names = parse_controllers(controller)
+        zeta = controller_options(names, policy, zeta).zeta  # refuses an option none of them reads
         check_seed(seed)
         for name in names:
             check_fly_options(name, "sat", target_alpha, duration, spin_s)

@@ -152,6 +152,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.cli_options import (
             check_mc_options,
             command_line,
+            controller_options,
             warn_loop_mismatch,
         )
         from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
@@ -160,6 +161,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.outdir import prepare_out_dir, read_paths
 
         names = parse_controllers(controller)
+        zeta = controller_options(names, policy, zeta).zeta  # refuses an option none of them reads
         g = build_grid(grid, n, fixed)
         check_mc_options(g.n_runs, target_alpha, duration, chunk)
         check_seed(seed)

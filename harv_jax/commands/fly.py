@@ -48,7 +48,9 @@ def register(app: typer.Typer) -> None:
         ),
         out: Path = typer.Option(Path("runs/fly"), help="Output directory."),
         force: bool = force_option(),
-        switching: str = typer.Option("sat", help="SMC switching: sat (boundary layer) or sign (paper)."),
+        switching: str = typer.Option(
+            None, help="SMC switching: sat (boundary layer, default) or sign (paper).", show_default=False
+        ),
         spin_s: float = typer.Option(
             30.0, parser=real_number, help="Spin scenario: seconds held in the spin before engagement."
         ),
@@ -57,13 +59,16 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Fly a controller closed loop: trajectory.csv, trajectory.png, sliding.png, metrics.json (and
         hybrid.png for the hybrid)."""
-        from harv_jax.cli_options import SCENARIOS, check_fly_options, load_state_file, warn_loop_mismatch
+        from harv_jax.cli_options import check_fly_options, controller_options, warn_loop_mismatch
         from harv_jax.control.registry import ControllerOptions, build_controller
         from harv_jax.guards import check_seed
         from harv_jax.outdir import prepare_out_dir, read_paths
+        from harv_jax.state_file import SCENARIOS, load_state_file
         from harv_jax.task.spec import DT_S
 
         check_fly_options(controller, switching, target_alpha, duration, spin_s)
+        opts = controller_options([controller], policy, zeta, switching)  # refuses an option it does not read
+        zeta, switching = opts.zeta, opts.switching
         check_seed(seed)
         # validate the state file, the policy and zeta before creating the output directory
         state = scenario if scenario in SCENARIOS else load_state_file(Path(scenario))

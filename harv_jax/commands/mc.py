@@ -57,6 +57,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.cli_options import (
             check_mc_options,
             command_line,
+            controller_options,
             warn_loop_mismatch,
         )
         from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
@@ -64,6 +65,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.outdir import prepare_out_dir, read_paths
 
         names = parse_controllers(controller)
+        zeta = controller_options(names, policy, zeta).zeta  # refuses an option none of them reads
         check_mc_options(runs, target_alpha, duration, chunk)
         check_seed(seed)
         check_closed_loop_batch(runs, round(duration / DT_S), 10, chunk, len(names))

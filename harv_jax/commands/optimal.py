@@ -48,10 +48,11 @@ def register(app: typer.Typer) -> None:
         aircraft_name: str | None = None,
     ) -> None:
         """Per run a recovery near the fastest the aircraft allows, against smc, smc-brake, rl, hybrid."""
-        from harv_jax.cli_options import SCENARIOS, check_mc_options, command_line, load_state_file
+        from harv_jax.cli_options import check_mc_options, command_line
         from harv_jax.errors import UsageError
         from harv_jax.guards import check_seed
         from harv_jax.outdir import check_out_dir, read_paths
+        from harv_jax.state_file import SCENARIOS, load_state_file
 
         check_seed(seed)
         check_mc_options(runs, target_alpha, 60.0, None)

@@ -49,6 +49,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.cli_options import (
             check_mc_options,
             command_line,
+            controller_options,
             warn_loop_mismatch,
         )
         from harv_jax.control.registry import ControllerOptions, build_controller
@@ -58,6 +59,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
         names = list(QUICKSTART_CONTROLLERS)
+        zeta = controller_options(names, policy, zeta).zeta  # refuses an option none of them reads
         check_mc_options(runs, ALPHA_TARGET_RAD, DURATION_S, CHUNK)
         check_seed(seed)
         check_closed_loop_batch(runs, round(DURATION_S / DT_S), 10, CHUNK, len(names))

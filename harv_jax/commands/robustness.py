@@ -53,7 +53,12 @@ def register(app: typer.Typer) -> None:
         aircraft_name: str | None = None,
     ) -> None:
         """Margins: recovery, mean recovery time and TV of each controller against each disturbance level."""
-        from harv_jax.cli_options import check_mc_options, command_line, warn_loop_mismatch
+        from harv_jax.cli_options import (
+            check_mc_options,
+            command_line,
+            controller_options,
+            warn_loop_mismatch,
+        )
         from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
         from harv_jax.errors import UsageError
         from harv_jax.evaluation.disturbance_spec import DISTURBANCE_NAMES
@@ -61,6 +66,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.guards import check_closed_loop_batch, check_seed
 
         names = parse_controllers(controller)
+        zeta = controller_options(names, policy, zeta).zeta  # refuses an option none of them reads
         check_mc_options(runs, ALPHA_TARGET_RAD, duration, chunk)
         check_seed(seed)
         swept = [p.strip() for p in disturbances.split(",") if p.strip()]

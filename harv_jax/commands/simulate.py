@@ -8,8 +8,9 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from harv_jax.cli_options import aircraft_option, force_option, real_number, validate_state
+from harv_jax.cli_options import aircraft_option, force_option, real_number
 from harv_jax.errors import UsageError
+from harv_jax.state_file import validate_state
 from harv_jax.task.spec import DT_S, H0_FT
 
 #: Default initial state (straight and level near trim at 600 ft/s, 25,000 ft).

@@ -272,6 +272,21 @@ def uses_option(names: Iterable[str], option: str) -> bool:
     return any(option in CONTROLLERS[n].options for n in bases if n in CONTROLLERS)
 
 
+def check_options_apply(names: Iterable[str], given: dict[str, str]) -> None:
+    """UsageError if an option the user gave (``given``: option name -> its value) is read by none of the
+    controllers ``names``: ``--policy`` without rl or hybrid, ``--zeta`` without hybrid, ``--switching``
+    without an SMC."""
+    names = list(names)
+    for option, value in given.items():
+        if uses_option(names, option):
+            continue
+        readers = [n for n, e in CONTROLLERS.items() if option in e.options]
+        raise UsageError(
+            f"--{option} {value!r} applies only to {', '.join(readers)}; --controller {','.join(names)} "
+            f"flies none of them: drop --{option} or add one of them"
+        )
+
+
 def parse_controllers(text: str) -> list[str]:
     """Comma-separated controller names -> list; UsageError on unknown or duplicate names."""
     names = [c.strip() for c in text.split(",") if c.strip()]

@@ -96,6 +96,8 @@ _FLOAT_RANGES = {
 MAX_INT_SETTING = 2**53
 #: Most PPO epochs per update.
 MAX_EPOCHS = 1000
+#: Most env steps per seed (``--steps``): about two days on two CPU cores, hours on a GPU.
+MAX_TOTAL_STEPS = 10_000_000_000
 
 
 #: Config fields whose command-line flag has a different name.
@@ -120,6 +122,11 @@ def validate(cfg: PPOConfig) -> PPOConfig:
             raise UsageError(
                 f"{_flag(name)} {v} is too large; give a whole number in [1, {MAX_INT_SETTING:,}]"
             )
+    if cfg.total_steps > MAX_TOTAL_STEPS:
+        raise UsageError(
+            f"--steps {cfg.total_steps:,} is past the maximum of {MAX_TOTAL_STEPS:,} env steps per seed; "
+            f"give a whole number in [1, {MAX_TOTAL_STEPS:,}]"
+        )
     if cfg.epochs > MAX_EPOCHS:
         raise UsageError(f"--epochs {cfg.epochs} is too large; give a whole number in [1, {MAX_EPOCHS}]")
     for name in (
