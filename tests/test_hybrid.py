@@ -299,3 +299,52 @@ def test_unsaturated_steps_flags_position_and_rate_limits():
     d[3, 2] = 0.05  # a small move: free
     free = unsaturated_steps(d, u_min, u_max, step)
     np.testing.assert_array_equal(free, [False, False, True, True, True])
+
+
+def test_hand_over_counter_on_a_hand_made_zeta_sequence():
+    """ζ active for the last 15% of a run with one hand-over (the simplex schedule's shape): the summary
+    says ζ mean 0.15 and 1 hand-over per run; a fallback in and out counts 2; a constant ζ counts none
+    after its start."""
+    import types
+
+    from harv_jax.control.hybrid import zeta_handed_over
+    from harv_jax.evaluation.summary import summarize_controller
+
+    def handovers(seq: list[float]) -> list[bool]:
+        prev = jnp.zeros(3)
+        out = []
+        for z in seq:
+            zc = jnp.full(3, z)
+            out.append(bool(zeta_handed_over(prev, zc)))
+            prev = zc
+        return out
+
+    simplex = [0.0] * 85 + [1.0] * 15
+    flags = handovers(simplex)
+    assert sum(flags) == 1 and flags.index(True) == 85
+    assert sum(handovers([0.0] * 10 + [1.0] * 5 + [0.0] * 10)) == 2  # a fallback, then back
+    assert sum(handovers([1.0] * 20)) == 1  # the SMC alone: taken over at the first step
+    assert sum(handovers([0.2] * 20 + [0.49] * 5)) == 0  # a floor below 1/2 hands nothing over
+    # per channel: the mean over channels decides
+    assert bool(zeta_handed_over(jnp.zeros(3), jnp.array([1.0, 1.0, 0.0])))
+    assert not bool(zeta_handed_over(jnp.zeros(3), jnp.array([1.0, 0.0, 0.0])))
+
+    n = len(simplex)
+    one = np.ones(1)
+    metrics = types.SimpleNamespace(
+        outcome=np.zeros(1, int), recovered=np.ones(1, bool), t_recover_s=one * 20,
+        t_recover_alpha_s=one * 10, altitude_loss_ft=one, control_tv_rad=np.ones((1, 3)),
+        chatter_index_rad2=np.ones((1, 3)),
+        sat_position_fraction=one * 0, sat_rate_fraction=one * 0, left_envelope=np.zeros(1, bool),
+    )  # fmt: skip
+    info = {
+        "zeta": np.array([np.mean(simplex)]),
+        "zeta_handed_over": np.array([np.mean(flags)]),
+        "zeta_switched": np.zeros(1),
+        "intervened": np.zeros(1),
+    }
+    out = types.SimpleNamespace(metrics=metrics, terminal_error_rad=np.zeros((1, 3)), info_means=info)
+    hybrid = summarize_controller(out, {"compile": 0.0, "run": 0.0}, n_steps=n)["hybrid"]
+    assert hybrid["zeta_active_fraction"] == pytest.approx(0.15)
+    assert hybrid["zeta_handovers_per_run"] == pytest.approx(1.0)
+    assert hybrid["zeta_switches_per_run"] == 0.0  # no hysteresis tube in this schedule

@@ -137,8 +137,8 @@ def test_mc_report_tables_commands_and_embedded_figures(monkeypatch, capsys, tmp
     assert rows["recovery time p95 [s]"] == ["28.46", "–"]
     assert rows["altitude loss mean [ft]"] == ["1,673", "1,673"]
     assert rows["chatter index mean [rad²]"] == ["3.83e-06", "3.83e-06"]
-    assert rows["safety interventions [steps with an intervention per run]"] == ["2.5", "2.5"]
-    assert rows["ζ active (fraction of steps)"] == ["–", "0.250"]
+    assert rows["safety-filter interventions [steps with an intervention per run]"] == ["2.5", "2.5"]
+    assert rows["ζ mean (over steps and channels)"] == ["–", "0.250"]
     term = _md_table_rows(md.split("Terminal tracking errors")[1], "| metric | smc | hybrid |")
     assert term["α mean"] == ["0.250", "0.250"] and term["μ mean"] == ["2.000", "2.000"]
     assert term["β p5 / p50 / p95"][0] == "-1.250 / 0.125 / 1.500"
@@ -357,3 +357,45 @@ def test_build_report_api_in_place_and_nested_out(tmp_path):
     md2, _ = build_report(run, nested, force=True)  # rep/ exists now and must be skipped by the scan
     text = md2.read_text()
     assert "## rep" not in text and "](../bands_smc.png)" in text
+
+
+def test_controllers_are_introduced_and_identical_flights_explained():
+    from harv_jax.report.document import Doc, to_html, to_markdown
+    from harv_jax.report.sections import controllers_section, identical_flights
+
+    same = {"outcome": "RECOVERED", "recovery_time_s": 23.52, "control_tv_rad": 19.3}
+    rows = [
+        {"scenario": "spin", "controller": "smc", **same, "recovery_time_vs_smc": 1.0},
+        {"scenario": "spin", "controller": "smc-brake", **same, "recovery_time_vs_smc": 1.0},
+        {"scenario": "spin", "controller": "rl", **same, "control_tv_rad": 5.0},
+        {"scenario": "fixed", "controller": "smc", **same},
+        {"scenario": "fixed", "controller": "smc-brake", **same, "recovery_time_s": 20.0},
+    ]
+    lines = identical_flights(rows)
+    assert lines == [
+        "On spin, smc-brake flew exactly as smc (every metric equal): what they add to it (see Controllers "
+        "above) did not engage on this flight."
+    ]
+    doc = Doc()
+    controllers_section(doc, ["smc", "smc-brake-zoom", "rl+lp2", "mine"])
+    md = to_markdown(doc, Path("."))
+    assert "| smc-brake-zoom | smc-brake while" in md and "lp at 2 Hz" in md
+    assert "| mine | a controller registered by the user |" in md
+    page = to_html(doc, "t")
+    assert '<div class="table"><table class="text">' in page and "overflow-wrap:anywhere" in page
+
+
+def test_quickstart_like_report_introduces_every_controller_before_its_tables(tmp_path):
+    """A run folder with a compare and a Monte Carlo: the Controllers table comes before any result."""
+    from harv_jax.report.build import build_document, report_controllers
+    from harv_jax.report.document import to_markdown
+    from harv_jax.report.scan import scan
+
+    run = tmp_path / "mc"
+    make_mc_dir(run)
+    sections = scan(run)
+    assert report_controllers(sections) == ["smc", "hybrid"]
+    md = to_markdown(build_document(run, sections, "harv-jax report mc"), run)
+    intro = md.index("## Controllers")
+    assert intro < md.index("| metric | smc | hybrid |")
+    assert "| hybrid | policy + SMC feedback" in md

@@ -329,6 +329,7 @@ def make_hybrid(
             "zeta": jnp.mean(z.zeta),
             "zeta_channels": z.zeta,
             "zeta_switched": z.switched,
+            "zeta_handed_over": zeta_handed_over(state.zeta_gate, z.zeta),
             "policy_unmodified": ~fallback & jnp.all(u == u_rl_raw),
             "correction_rad": jnp.abs(u - u_rl),
             "fallback": sup.fallback,
@@ -355,6 +356,13 @@ def make_hybrid(
         return u, new_state, info
 
     return Controller(init=init, apply=apply)
+
+
+def zeta_handed_over(zeta_prev: jnp.ndarray, zeta: jnp.ndarray) -> jnp.ndarray:
+    """Whether the larger share of the command changed hands at this step: the mean zeta over the channels
+    crossed 1/2 since the previous step (the hybrid starts from the policy alone, zeta = 0). Counts every
+    schedule's hand-overs alike: a simplex hand-over, a fallback, a hysteresis tube switch."""
+    return (jnp.mean(zeta) >= 0.5) != (jnp.mean(zeta_prev) >= 0.5)
 
 
 def zero_policy_action(params: AircraftParams) -> jnp.ndarray:

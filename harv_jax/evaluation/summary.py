@@ -95,6 +95,7 @@ def summarize_controller(
     hybrid = {
         "zeta_active_fraction": float(np.mean(info["zeta"])) if "zeta" in info else None,
         "zeta_switches_per_run": per_run("zeta_switched"),
+        "zeta_handovers_per_run": per_run("zeta_handed_over"),
         "fallback_fraction": float(np.mean(info["fallback"])) if "fallback" in info else None,
         "fallbacks_per_run": per_run("fallback_entered"),
         **gate_summary(info),
@@ -225,7 +226,7 @@ MC_RECOVERY_ROWS: tuple[Row, ...] = (
     ("chatter index mean [rad²]", ("chatter_index", "mean"), ".3g"),
     ("position saturation fraction", ("saturation_fraction",), ".3f"),
     ("rate saturation fraction", ("rate_saturation_fraction",), ".3f"),
-    ("safety interventions", ("safety_interventions",), ".4g"),
+    ("safety-filter interventions", ("safety_interventions",), ".4g"),
     ("left envelope (fraction of runs)", ("left_envelope_fraction",), ".3f"),
 )
 #: Against the SMC on the same runs (``vs_smc``; not-recovered runs at the run length).
@@ -236,8 +237,9 @@ MC_VS_SMC_ROWS: tuple[Row, ...] = (
 )
 #: Hybrid diagnostics (present for every controller in newer summaries; '–' where not applicable).
 MC_HYBRID_ROWS: tuple[Row, ...] = (
-    ("ζ active (fraction of steps)", ("hybrid", "zeta_active_fraction"), ".3f"),
-    ("ζ switches per run", ("hybrid", "zeta_switches_per_run"), ".3g"),
+    ("ζ mean (over steps and channels)", ("hybrid", "zeta_active_fraction"), ".3f"),
+    ("ζ hand-overs per run", ("hybrid", "zeta_handovers_per_run"), ".3g"),
+    ("tube switches per run (hysteresis)", ("hybrid", "zeta_switches_per_run"), ".3g"),
     ("supervisor fallback (fraction of steps)", ("hybrid", "fallback_fraction"), ".3f"),
     ("supervisor fallbacks per run", ("hybrid", "fallbacks_per_run"), ".3g"),
 )

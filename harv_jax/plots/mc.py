@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -89,7 +90,7 @@ def plot_mc_bands(
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8, loc="upper right")
     axes[-1].set_xlabel("t [s]")
-    fig.suptitle(title or f"Monte Carlo bands (N = {history_rad.shape[0]})")
+    fig.suptitle(textwrap.fill(title or f"Monte Carlo bands (N = {history_rad.shape[0]})", width=90))
     fig.tight_layout()
     path = Path(path)
     atomic.save_figure(fig, path, dpi=110)
@@ -104,40 +105,48 @@ def plot_mc_bands_overlay(
     path: str | Path,
     title: str = "",
 ) -> Path:
-    """All controllers' 5-95 % bands (translucent) and medians (lines) of alpha, beta, mu on one figure.
+    """Every controller's bands side by side (small multiples): one column per controller, one row per
+    variable (alpha, beta, mu) on one y-scale per row; each panel shows its controller's 5-95 % and 25-75 %
+    bands and median, and the other controllers' medians in thin grey for comparison.
 
     Args:
         t_s: [T] sample times, s.
         histories_rad: controller -> [N, T, 3] alpha, beta, mu of every run, rad.
         reference_rad: [3] references, rad.
         path: PNG path.
-        title: figure title.
+        title: figure title (wrapped to the figure's width).
     """
-    fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
+    names = list(histories_rad)
+    n = len(names)
+    fig, axes = plt.subplots(
+        3, n, figsize=(2.6 * n + 1.2, 7.5), sharex=True, sharey="row", squeeze=False, layout="constrained"
+    )
     lims = band_limits_deg(histories_rad, reference_rad)
-    for k, (ctrl, h) in enumerate(histories_rad.items()):
-        pct = band_percentiles(h)
-        style = RUN_STYLES[k % len(RUN_STYLES)]
-        for i, ax in enumerate(axes):
-            ax.fill_between(
-                t_s, pct[0, :, i], pct[-1, :, i], color=f"C{k}", alpha=0.18, lw=0, label=f"{ctrl} 5-95%"
-            )
-            ax.plot(
-                t_s,
-                pct[2, :, i],
-                color=f"C{k}",
-                label=f"{ctrl} median",
-                **{**style, "lw": max(style["lw"] * 0.8, 1.2)},
-            )
-    for i, (ax, name) in enumerate(zip(axes, ("alpha", "beta", "mu"), strict=True)):
-        ax.axhline(np.degrees(reference_rad[i]), color="k", ls="--", lw=0.8, label="reference")
-        ax.set_ylabel(f"{name} [deg]")
-        ax.set_ylim(*lims[i])
-        ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=8, loc="upper right", ncol=2)
-    axes[-1].set_xlabel("t [s]")
-    fig.suptitle(title or "Monte Carlo bands of all controllers")
-    fig.tight_layout()
+    pct = {c: band_percentiles(h) for c, h in histories_rad.items()}
+    for k, ctrl in enumerate(names):
+        for i, var in enumerate(("alpha", "beta", "mu")):
+            ax = axes[i, k]
+            for other in names:
+                if other != ctrl:
+                    ax.plot(t_s, pct[other][2, :, i], color="0.6", lw=0.7, label="other medians")
+            p5, p25, p50, p75, p95 = pct[ctrl][:, :, i]
+            ax.fill_between(t_s, p5, p95, color=f"C{k}", alpha=0.25, lw=0, label="5-95%")
+            ax.fill_between(t_s, p25, p75, color=f"C{k}", alpha=0.45, lw=0, label="25-75%")
+            ax.plot(t_s, p50, color=f"C{k}", lw=1.3, label="median")
+            ax.axhline(np.degrees(reference_rad[i]), color="k", ls="--", lw=0.8, label="reference")
+            ax.set_ylim(*lims[i])
+            ax.grid(alpha=0.3)
+            if k == 0:
+                ax.set_ylabel(f"{var} [deg]")
+            if i == 0:
+                ax.set_title(ctrl, fontsize=10, color=f"C{k}")
+            if i == 2:
+                ax.set_xlabel("t [s]")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    keep = dict(zip(labels, handles, strict=True))  # one entry per label
+    fig.legend(keep.values(), keep.keys(), loc="outside lower center", ncol=len(keep), fontsize=8)
+    text = title or "Monte Carlo bands of all controllers"
+    fig.suptitle(textwrap.fill(text, width=max(40, int(fig.get_figwidth() * 11))), fontsize=10)
     path = Path(path)
     atomic.save_figure(fig, path, dpi=110)
     plt.close(fig)
@@ -162,7 +171,7 @@ def plot_terminal_errors(errors_deg: Mapping[str, np.ndarray], path: str | Path)
         inside = np.concatenate(
             [v[np.isfinite(v) & (np.abs(v) <= lim)] for v in cols.values()] + [np.zeros(0)]
         )
-        span = max(float(np.max(np.abs(inside))) if inside.size else 0.5, 0.5)
+        span = max(float(np.max(np.abs(inside))) if inside.size else 0.6, 0.6)  # the +-0.5 lines inside
         bins = np.linspace(-span, span, 81)
         width = bins[1] - bins[0]
         for k, (ctrl, v) in enumerate(cols.items()):
@@ -209,9 +218,8 @@ def plot_terminal_errors(errors_deg: Mapping[str, np.ndarray], path: str | Path)
             any_overflow = True
             for side in (-1, 1):
                 ax.axvline(side * (span + 1.5 * width), color="grey", lw=0.8, ls="-")
-        for x in (-0.5, 0.5):
-            if x > -span and x < span:
-                ax.axvline(x, color="k", ls=":", lw=0.8)
+        for x in (-0.5, 0.5):  # always inside: span >= 0.6
+            ax.axvline(x, color="k", ls=":", lw=0.8)
         ax.set_yscale("log")
         ax.set_ylim(top=ax.get_ylim()[1] * 3)  # room for the overflow counts and the legend
         ax.set_xlabel(f"terminal {name} error [deg] (mean over the last 1 s; dotted: +-0.5 deg)")

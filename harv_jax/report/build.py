@@ -10,8 +10,29 @@ from harv_jax.errors import UsageError
 from harv_jax.report.document import Doc, to_html, to_markdown
 from harv_jax.report.robustness_section import robustness_section
 from harv_jax.report.scan import MAX_DEPTH, REPORT_FILES, Section, provenance, run_kind, scan
-from harv_jax.report.sections import compare_section, envelope_section, fly_section, mc_section
+from harv_jax.report.sections import (
+    compare_section,
+    controllers_section,
+    envelope_section,
+    fly_section,
+    mc_section,
+)
 from harv_jax.report.train_section import train_section
+
+
+def report_controllers(sections: list[Section]) -> list[str]:
+    """Every controller the sections name, in order of first appearance."""
+    names: list[str] = []
+    for sec in sections:
+        j = sec.jsons
+        for doc_name in ("compare.json", "summary.json", "envelope.json", "robustness.json"):
+            ctrls = j.get(doc_name, {}).get("controllers")
+            if isinstance(ctrls, dict | list):
+                names += [str(c) for c in ctrls]
+        fly = j.get("metrics.json", {}).get("controller")
+        if fly is not None:
+            names.append(str(fly))
+    return list(dict.fromkeys(names))
 
 
 def build_document(run_dir: Path, sections: list[Section], report_cmd: str) -> Doc:
@@ -30,6 +51,10 @@ def build_document(run_dir: Path, sections: list[Section], report_cmd: str) -> D
             )
     doc.table(["directory", "command", "seed"], rows, numeric=False)
     doc.p(f"This report: {report_cmd}")
+    names = report_controllers(sections)
+    if names:
+        doc.h(2, "Controllers")
+        controllers_section(doc, names)
     for sec in sections:
         rel = sec.path.relative_to(run_dir).as_posix() if sec.path != run_dir else run_dir.name
         kind = run_kind(sec)

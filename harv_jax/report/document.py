@@ -73,7 +73,8 @@ def _html_table(header: Sequence[str], rows: Sequence[Sequence[str]], numeric: b
     th = "".join(f"<th>{html.escape(str(c))}</th>" for c in header)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows)
     cls = "" if numeric else ' class="text"'
-    return f"<table{cls}><thead><tr>{th}</tr></thead><tbody>{body}</tbody></table>"
+    table = f"<table{cls}><thead><tr>{th}</tr></thead><tbody>{body}</tbody></table>"
+    return f'<div class="table">{table}</div>'  # scrolls on its own if a cell cannot wrap
 
 
 _MD_RULE = re.compile(r"^\|?\s*:?-{3,}:?\s*(\|\s*:?-{3,}:?\s*)*\|?\s*$")
@@ -135,7 +136,8 @@ def markdown_to_html(text: str) -> str:
 
 
 _CSS = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
-table{border-collapse:collapse;margin:0.6em 0 1.2em}th,td{border:1px solid #ccc;padding:3px 8px}
+table{border-collapse:collapse;margin:0.6em 0 1.2em;max-width:100%}div.table{max-width:100%;overflow-x:auto}
+th,td{border:1px solid #ccc;padding:3px 8px;overflow-wrap:anywhere}
 td{text-align:right}td:first-child,table.text td{text-align:left}th{background:#f0f0f0}
 pre{background:#f6f6f6;padding:0.6em;overflow-x:auto}figure{margin:1em 0}img{max-width:100%}
 figcaption{color:#555;font-size:0.9em}"""

@@ -105,11 +105,20 @@ def mc_section(doc: Doc, summary: dict) -> None:
     units = {b.get("safety_interventions_unit") for b in ctrls.values()} - {None}
     rows = tuple(
         (f"{label} [{', '.join(sorted(units))}]", path, spec)
-        if label == "safety interventions" and units
+        if label == "safety-filter interventions" and units
         else (label, path, spec)
         for label, path, spec in MC_RECOVERY_ROWS + MC_HYBRID_ROWS
     )
     doc.table(*controller_table(ctrls, rows))
+    doc.p(
+        "Safety-filter interventions: steps of a run at which the hybrid's safety filter changed the "
+        "learned command (its authority cap, or the rate and position box while the policy acts). ζ is the "
+        "SMC's share of the hybrid's command (0: the policy alone, 1: the SMC alone); a hand-over is a step "
+        "at which ζ, averaged over the three channels, crossed ½ (the hybrid starts with ζ = 0). The simplex "
+        "schedule hands over to the SMC for good, so ζ can be active for much of a run after one hand-over. "
+        "Tube switches count only the hysteresis schedule's tube; supervisor fallbacks the supervisor's "
+        "SMC-only mode. '–': the counter does not apply to that controller."
+    )
     header, vs_rows = controller_table(ctrls, MC_VS_SMC_ROWS)
     if vs_rows:
         run_s = fmt(summary.get("duration_s"), "g")
@@ -141,6 +150,48 @@ def compare_section(doc: Doc, cmp: dict) -> None:
         ("disturbances", _disturbances(cmp["disturbances"]) if "disturbances" in cmp else None),
     ]
     doc.table(["setting", "value"], [(k, v) for k, v in settings if v is not None], numeric=False)
+    for line in identical_flights(cmp.get("rows") or []):
+        doc.p(line)
+
+
+#: compare.json row fields that name a row rather than measure its flight.
+_ROW_NAMES = ("scenario", "controller", "recovery_time_vs_smc")
+
+
+def identical_flights(rows: list[dict]) -> list[str]:
+    """One sentence per scenario on which controllers flew exactly the same flight (every metric equal):
+    the later ones' own logic never engaged there, which the table alone does not say."""
+    lines = []
+    for scenario in dict.fromkeys(r.get("scenario") for r in rows):
+        groups: dict[tuple, list[str]] = {}
+        for r in rows:
+            if r.get("scenario") == scenario:
+                key = tuple(sorted((k, str(v)) for k, v in r.items() if k not in _ROW_NAMES))
+                groups.setdefault(key, []).append(str(r.get("controller")))
+        for names in groups.values():
+            if len(names) > 1:
+                lines.append(
+                    f"On {scenario}, {', '.join(names[1:])} flew exactly as {names[0]} (every metric equal): "
+                    "what they add to it (see Controllers above) did not engage on this flight."
+                )
+    return lines
+
+
+def controllers_section(doc: Doc, names: list[str]) -> None:
+    """Each controller of the report, introduced once, before any table names it (the registry's help)."""
+    from harv_jax.control.registry import CONTROLLERS, split_filter
+
+    rows = []
+    for name in names:
+        try:
+            base, path = split_filter(name)
+        except ValueError:
+            base, path = name, None
+        text = CONTROLLERS[base].help if base in CONTROLLERS else "a controller registered by the user"
+        if path is not None:
+            text += f"; its measurements through {path.suffix.lstrip('+')} at {path.bandwidth_hz:g} Hz"
+        rows.append((name, text))
+    doc.table(["controller", "what it is"], rows, numeric=False)
 
 
 def envelope_section(doc: Doc, env: dict) -> None:
