@@ -1,7 +1,7 @@
 """Atomic output files: each is written to a temporary file beside it, then renamed over its name, so a
 killed command leaves either the old file, the new one, or a temporary file harv-jax recognizes as its own
-(:data:`harv_jax.manifest.OWN_PATTERNS`), never half a file. Each file is recorded in the manifest of the run
-folder it lies in (:func:`harv_jax.manifest.record`)."""
+([`harv_jax.manifest.OWN_PATTERNS`][]), never half a file. Each file is recorded in the manifest of the run
+folder it lies in ([`harv_jax.manifest.record`][])."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Command-line options and validators shared by several commands (one definition, one help text).
 
-Validators raise :class:`~harv_jax.errors.UsageError` with one line naming the value and what is allowed;
+Validators raise `UsageError` with one line naming the value and what is allowed;
 resource guards (memory, seeds) are in ``harv_jax.guards``.
 """
 
@@ -57,7 +57,7 @@ def policy_option():
 
 
 def zeta_option():
-    """``--zeta`` (default None: ``registry.DEFAULT_ZETA``, see :func:`controller_options`)."""
+    """``--zeta`` (default None: ``registry.DEFAULT_ZETA``, see [`controller_options`][])."""
     return typer.Option(None, help=ZETA_HELP + f" Default {DEFAULT_ZETA}.", show_default=False)
 
 
@@ -106,7 +106,7 @@ def command_line() -> str:
 
 def check_duration(duration: float) -> None:
     """``--duration`` of a closed-loop command: longer than the recovery criterion's hold (a shorter run
-    could never be scored recovered) and at most :data:`MAX_DURATION_S`."""
+    could never be scored recovered) and at most [`MAX_DURATION_S`][]."""
     if not (math.isfinite(duration) and RECOVERY_HOLD_S < duration <= MAX_DURATION_S):
         raise UsageError(
             f"--duration {duration} s: allowed ({RECOVERY_HOLD_S:g}, {MAX_DURATION_S:g}] s (longer than the "

@@ -1,6 +1,6 @@
 """Resource and range guards checked before anything is allocated or compiled.
 
-Each guard raises :class:`~harv_jax.errors.UsageError` (a ValueError) with one line naming the value, what
+Each guard raises `UsageError` (a ValueError) with one line naming the value, what
 is allowed and why. Memory estimates are deliberately rough upper bounds (bytes per stored float times the
 arrays a run keeps), compared with a fraction of the machine's physical memory.
 """
@@ -51,7 +51,7 @@ def _gib(n_bytes: float) -> str:
 
 
 def check_memory(need_bytes: float, what: str, hint: str) -> None:
-    """Raise UsageError if ``need_bytes`` exceeds :data:`MEMORY_FRACTION` of the machine's memory.
+    """Raise UsageError if ``need_bytes`` exceeds [`MEMORY_FRACTION`][] of the machine's memory.
 
     Args:
         need_bytes: estimated bytes the run would hold.
@@ -73,7 +73,7 @@ ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
 def check_npz_archive(path: Path, what: str) -> None:
     """Read only the array headers of the ``.npz`` at ``path``; raise UsageError if the file cannot be read,
     is empty or no zip archive, a member is not a ``.npy`` array, holds Python objects (loading it would need
-    pickle), or the arrays declare more bytes than :func:`check_memory` allows. ``what`` names the file in
+    pickle), or the arrays declare more bytes than [`check_memory`][] allows. ``what`` names the file in
     the message (``"policy file 'p.npz'"``)."""
     import zipfile
 
@@ -114,7 +114,7 @@ def check_npz_archive(path: Path, what: str) -> None:
 
 
 def check_seed(seed: int, flag: str = "--seed") -> int:
-    """Return ``seed`` if it is an integer in :data:`SEED_RANGE`, else raise UsageError."""
+    """Return ``seed`` if it is an integer in [`SEED_RANGE`][], else raise UsageError."""
     lo, hi = SEED_RANGE
     if isinstance(seed, bool) or not isinstance(seed, int) or not lo <= seed <= hi:
         raise UsageError(f"{flag} {seed!r} is outside the allowed seeds [{lo}, {hi}]")
@@ -151,7 +151,7 @@ def auto_chunk(runs: int, n_steps: int, n_devices: int = 1, runs_per_device: int
     """Runs per compiled call when none is given.
 
     ``runs_per_device`` runs per device (``None``: all runs, as on a GPU), at most
-    :data:`AUTO_CHUNK_MEMORY_FRACTION` of the machine's memory at full rate, a multiple of ``n_devices``
+    [`AUTO_CHUNK_MEMORY_FRACTION`][] of the machine's memory at full rate, a multiple of ``n_devices``
     (at least ``n_devices``, the runs are sharded over them), and within the int32 step counters.
     """
     if runs < 1 or n_steps < 1 or n_devices < 1:
@@ -179,7 +179,7 @@ def check_closed_loop_batch(
         runs: runs per controller.
         n_steps: plant steps per run.
         record_every: decimation of the kept alpha/beta/mu history (``n_steps``: one sample per run).
-        chunk: runs per compiled call (``None``: :func:`auto_chunk`, which stays within its memory share).
+        chunk: runs per compiled call (``None``: [`auto_chunk`][], which stays within its memory share).
         n_controllers: controllers flown (their histories are all kept).
         runs_flag: the flag that set ``runs`` (``--runs``, ``--n``).
     """
@@ -205,7 +205,7 @@ TRAIN_COPIES_PER_WEIGHT = 4
 
 def check_network(hidden_sizes: tuple[int, ...], num_seeds: int) -> None:
     """Guard the hidden layers of ``num_seeds`` actor-critic pairs: depth, width, and the memory of their
-    hidden weights in training (:data:`TRAIN_COPIES_PER_WEIGHT` copies; input and output layers are small)."""
+    hidden weights in training ([`TRAIN_COPIES_PER_WEIGHT`][] copies; input and output layers are small)."""
     if len(hidden_sizes) > MAX_HIDDEN_LAYERS:
         raise UsageError(
             f"hidden_sizes has {len(hidden_sizes)} layers; at most {MAX_HIDDEN_LAYERS} are allowed"

@@ -4,9 +4,9 @@
 The signals are not delivered to the main thread as Python exceptions: that thread may sit in a compiled
 computation for minutes, and unwinding it while XLA's threads still run ended in segmentation faults. A
 watcher thread wakes on the signal (``signal.set_wakeup_fd``), marks the run folders of this process
-``interrupted`` (:func:`harv_jax.outdir.interrupted_message`), prints the line and ends the process with
+``interrupted`` ([`harv_jax.outdir.interrupted_message`][]), prints the line and ends the process with
 ``os._exit``. What was written stays consistent: every output file is replaced atomically
-(:mod:`harv_jax.atomic`) and every checkpoint is intact or absent, so an interrupted training run resumes
+([`harv_jax.atomic`][]) and every checkpoint is intact or absent, so an interrupted training run resumes
 from its last checkpoint, as after any other kill.
 """
 

@@ -1,13 +1,13 @@
 """The manifest of a run folder: which files harv-jax wrote there, and whether the command finished.
 
-Every folder that :func:`harv_jax.outdir.prepare_out_dir` creates holds ``.harv_jax_manifest.json``: the
+Every folder that [`harv_jax.outdir.prepare_out_dir`][] creates holds ``.harv_jax_manifest.json``: the
 command line, a status (``running``, ``complete``, ``interrupted``) and each file written through
-:mod:`harv_jax.atomic` with its size and modification time. ``--force`` replaces a folder only if every
-file in it is harv-jax's (:func:`foreign_entries`): recorded and unchanged since, or one of the names a
-command writes incrementally or temporarily (:data:`OWN_PATTERNS`: checkpoints, TensorBoard event files,
+[`harv_jax.atomic`][] with its size and modification time. ``--force`` replaces a folder only if every
+file in it is harv-jax's ([`foreign_entries`][]): recorded and unchanged since, or one of the names a
+command writes incrementally or temporarily ([`OWN_PATTERNS`][]: checkpoints, TensorBoard event files,
 temporary files a crash left behind).
 
-Only the process that holds a folder's lock (:mod:`harv_jax.runlock`) writes its manifest.
+Only the process that holds a folder's lock ([`harv_jax.runlock`][]) writes its manifest.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ RUNNING, COMPLETE, INTERRUPTED = "running", "complete", "interrupted"
 BOOKKEEPING = (MARKER, MANIFEST, *runlock.LOCK_FILES)
 #: Relative paths (``fnmatch``) harv-jax writes without recording them file by file: checkpoints and their
 #: temporary or set-aside files, TensorBoard event files, a stalled run's traceback, and the temporary file
-#: of any atomic write (:func:`harv_jax.atomic.tmp_path`).
+#: of any atomic write ([`harv_jax.atomic.tmp_path`][]).
 OWN_PATTERNS = (
     "checkpoints/ckpt_*.msgpack",
     "checkpoints/ckpt_*.msgpack.corrupt",

@@ -21,7 +21,7 @@ def round_sig(x: float, digits: int = JSON_DIGITS) -> float:
 
 
 def round_floats(obj: Any, digits: int = JSON_DIGITS) -> Any:
-    """A copy of a JSON-like tree with every float rounded by :func:`round_sig`."""
+    """A copy of a JSON-like tree with every float rounded by [`round_sig`][]."""
     if isinstance(obj, float):
         return round_sig(obj, digits)
     if isinstance(obj, dict):

@@ -1,13 +1,13 @@
 """Output directories: never silently overwrite what a previous run wrote, never delete what harv-jax
 did not write, nor what the command itself reads.
 
-Every directory :func:`prepare_out_dir` creates gets a marker file (:data:`MARKER`) and a manifest of the
-files harv-jax writes into it (:mod:`harv_jax.manifest`). ``--force`` replaces a non-empty directory only if
+Every directory [`prepare_out_dir`][] creates gets a marker file ([`MARKER`][]) and a manifest of the
+files harv-jax writes into it ([`harv_jax.manifest`][]). ``--force`` replaces a non-empty directory only if
 every file in it is harv-jax's (recorded and unchanged, or of a name harv-jax writes incrementally), no
-other live harv-jax process holds its lock (:mod:`harv_jax.runlock`), it is not, does not contain and does
+other live harv-jax process holds its lock ([`harv_jax.runlock`][]), it is not, does not contain and does
 not lie inside anything the command reads, and it is not the current directory, one of its parents, the
-home directory or the filesystem root. The folder :func:`prepare_out_dir` returns is locked by this process
-until it ends, and its manifest says ``running`` until :func:`finish_all` marks it ``complete``; a folder
+home directory or the filesystem root. The folder [`prepare_out_dir`][] returns is locked by this process
+until it ends, and its manifest says ``running`` until [`finish_all`][] marks it ``complete``; a folder
 whose command was interrupted or killed says so to ``--force``, ``report`` and a re-run.
 """
 
@@ -36,12 +36,12 @@ class Prepared:
     resume_command: str | None = None
 
 
-#: Folders this process prepared, in order (:func:`finish_all`, :func:`interrupted_message`).
+#: Folders this process prepared, in order ([`finish_all`][], [`interrupted_message`][]).
 _PREPARED: list[Prepared] = []
 
 
 def is_run_dir(path: str | Path) -> bool:
-    """True if ``path`` is a directory that a harv-jax command created (it holds :data:`MARKER`)."""
+    """True if ``path`` is a directory that a harv-jax command created (it holds [`MARKER`][])."""
     p = Path(path)
     return p.is_dir() and (p / MARKER).is_file()
 
@@ -167,7 +167,7 @@ def check_out_dir(path: str | Path, force: bool = False, reads: Iterable[str | P
 
     Raises:
         UsageError: empty path; ``path`` or an ancestor is a file; ``path`` is non-empty and ``force`` is
-            False; ``force`` is True but ``path`` may not be emptied (:func:`check_force_target`).
+            False; ``force`` is True but ``path`` may not be emptied ([`check_force_target`][]).
     """
     if str(path).strip() == "":
         raise UsageError("--out '' is empty; give the name of a new folder, e.g. --out runs/mine")
@@ -206,7 +206,7 @@ def prepare_out_dir(
     (``train``), named in the interruption message.
 
     Raises:
-        UsageError: see :func:`check_out_dir`; or the folder cannot be created.
+        UsageError: see [`check_out_dir`][]; or the folder cannot be created.
     """
     reads = list(reads)
     out = check_out_dir(path, force, reads)
@@ -235,7 +235,7 @@ def prepare_out_dir(
 
 def adopt(folder: str | Path, resume_command: str | None = None) -> None:
     """Take over the manifest of an existing run folder this process has locked (``train --resume``): its
-    status is ``running`` again until :func:`finish_all`."""
+    status is ``running`` again until [`finish_all`][]."""
     folder = Path(folder)
     if manifest.adopt(folder):
         _PREPARED.append(Prepared(folder, resume_command))
@@ -273,7 +273,7 @@ def interrupted_message(signal_name: str, timeout_s: float = 3.0) -> str:
 
 
 def note_incomplete(folder: str | Path) -> None:
-    """Print :func:`incomplete_note` for ``folder`` on stderr, if it applies."""
+    """Print [`incomplete_note`][] for ``folder`` on stderr, if it applies."""
     note = incomplete_note(folder)
     if note is not None:
         print(f"harv-jax: note: {note}", file=sys.stderr)

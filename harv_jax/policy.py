@@ -1,8 +1,8 @@
 """Trained-policy API: load a policy, act deterministically or stochastically, export it.
 
 ``load(path)`` accepts a training run folder (``<run>/policy/policy.npz``), a ``.npz`` written by
-:func:`export_npz`, or a training checkpoint (``ckpt_*.msgpack``; ``seed`` picks the learner). It returns a
-:class:`Policy` with jitted ``deterministic(obs) -> action`` and ``stochastic(key, obs) -> action``; ``obs``
+[`export_npz`][], or a training checkpoint (``ckpt_*.msgpack``; ``seed`` picks the learner). It returns a
+[`Policy`][] with jitted ``deterministic(obs) -> action`` and ``stochastic(key, obs) -> action``; ``obs``
 is the env observation ``[..., 11]`` in physical units (ft/s, rad, rad/s), ``action`` the normalised command
 ``[..., 3]`` in [-1, 1] (the env maps it affinely to [u_min, u_max] rad per surface).
 
@@ -15,7 +15,7 @@ config, seed, ``obs_count``). Deterministic action: ``clip(mean, -1, 1)``; stoch
 exp(log_std) * N(0, 1), -1, 1)``.
 
 ``export_stablehlo`` writes the deterministic policy with ``jax.export`` (serialized StableHLO, symbolic
-batch size, weights baked in); :func:`load_exported` reads it back without the model code (both in
+batch size, weights baked in); [`load_exported`][] reads it back without the model code (both in
 ``harv_jax.policy_stablehlo``, re-exported here).
 """
 
@@ -81,7 +81,7 @@ def make_policy(
     normalize_observations: bool = True,
     meta: dict[str, Any] | None = None,
 ) -> Policy:
-    """Wrap parameters into a :class:`Policy` (one learner: no seed axis)."""
+    """Wrap parameters into a [`Policy`][] (one learner: no seed axis)."""
 
     def prep(obs: jax.Array) -> jax.Array:
         obs = jnp.asarray(obs, jnp.float32)

@@ -1,8 +1,8 @@
 """The deterministic policy as serialized StableHLO (``jax.export``), for use without the model code.
 
-:func:`export_stablehlo` writes ``policy.deterministic`` for a symbolic batch size with the weights baked in;
-:func:`load_exported` reads such a file back as ``obs [b, O] -> action [b, A]``. Serialization needs the
-``flatbuffers`` package (:func:`export_available`). ``harv_jax.policy`` re-exports all three.
+[`export_stablehlo`][] writes ``policy.deterministic`` for a symbolic batch size with the weights baked in;
+[`load_exported`][] reads such a file back as ``obs [b, O] -> action [b, A]``. Serialization needs the
+``flatbuffers`` package ([`export_available`][]). ``harv_jax.policy`` re-exports all three.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ def export_stablehlo(path: str | Path, policy: Policy) -> Path:
 
 
 def load_exported(path: str | Path) -> Callable[[jax.Array], jax.Array]:
-    """Read a :func:`export_stablehlo` file: returns ``obs [b, O] -> action [b, A]``."""
+    """Read a [`export_stablehlo`][] file: returns ``obs [b, O] -> action [b, A]``."""
     p = Path(path)
     if not p.is_file():
         raise UsageError(f"exported policy {str(p)!r} does not exist")

@@ -32,7 +32,7 @@ HOLDER_NAME = ".harv_jax_lock.json"
 #: The files of the lock itself (kept when ``--force`` empties a folder it holds).
 LOCK_FILES = (LOCK_NAME, HOLDER_NAME)
 
-#: Locks this process holds, by resolved folder (held until the process ends or :func:`release`).
+#: Locks this process holds, by resolved folder (held until the process ends or [`release`][]).
 _HELD: dict[Path, FileLock] = {}
 
 

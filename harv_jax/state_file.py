@@ -31,7 +31,7 @@ STATE_LIMITS = {
 
 
 def validate_state(state: dict[str, float]) -> None:
-    """Raise UsageError for a physically meaningless initial state (outside :data:`STATE_LIMITS`)."""
+    """Raise UsageError for a physically meaningless initial state (outside [`STATE_LIMITS`][])."""
     for name, v in state.items():
         if name not in STATE_LIMITS:
             continue
@@ -86,7 +86,7 @@ def load_state_file(path: Path) -> dict[str, float]:
 
     Required names: V, alpha, beta, p, q, r, mu, gamma (ft/s, rad, rad/s); optional chi (rad, 0) and
     h (ft, 25,000). The columns t, de, da, dr of a ``harv-jax simulate`` trajectory.csv are ignored; any other
-    name, a missing one, a value that is not a finite number or a state outside :data:`STATE_LIMITS` is a
+    name, a missing one, a value that is not a finite number or a state outside [`STATE_LIMITS`][] is a
     UsageError.
     """
     if not path.is_file():

@@ -1,6 +1,6 @@
 """Aircraft by name: the nominal aircraft of every study, the env and the command line.
 
-``"harv"`` (``params.harv``) is registered and is the default (:data:`DEFAULT_AIRCRAFT`). A user's aircraft
+``"harv"`` (``params.harv``) is registered and is the default (`DEFAULT_AIRCRAFT`). A user's aircraft
 is a factory returning ``AircraftParams`` (e.g. ``harv()`` with other mass properties, or another
 ``AeroTable``) registered under a new name; the commands then fly it with ``--aircraft NAME``.
 """
@@ -61,7 +61,7 @@ def get_aircraft(name: str = DEFAULT_AIRCRAFT, throttle: float | None = None, dt
     """The aircraft registered as ``name``.
 
     Args:
-        name: a name of :func:`aircraft_names`.
+        name: a name of [`aircraft_names`][].
         throttle: fixed throttle in [0, 1] (None: the factory's).
         dtype: float dtype of every leaf (None: jax's default float).
 
@@ -84,7 +84,7 @@ def get_aircraft(name: str = DEFAULT_AIRCRAFT, throttle: float | None = None, dt
 
 def resolve_aircraft(aircraft: str | AircraftParams | None) -> tuple[str, AircraftParams]:
     """(recorded name, params) of a study's ``aircraft`` argument: None is the default, a string a
-    registered name, ``AircraftParams`` itself (recorded as :data:`CUSTOM_AIRCRAFT`)."""
+    registered name, ``AircraftParams`` itself (recorded as `CUSTOM_AIRCRAFT`)."""
     if aircraft is None:
         aircraft = DEFAULT_AIRCRAFT
     if isinstance(aircraft, AircraftParams):

@@ -8,10 +8,10 @@ and ``policy.stablehlo`` of the best seed by final mean return, ``policy_seed<i>
 ``--resume DIR`` continues from the newest intact checkpoint (a damaged newer one is skipped, renamed
 ``*.corrupt`` and named in a message); a run folder killed before its first checkpoint is restarted from
 period 0 with the configuration in its ``config.json``. A watchdog (``--watchdog-s``,
-:mod:`harv_jax.ppo.watchdog`) ends a stalled run with a one-line error and exit code 3; its checkpoints stay
+`harv_jax.ppo.watchdog`) ends a stalled run with a one-line error and exit code 3; its checkpoints stay
 intact, so ``--resume`` continues it. ``--demos FILE`` (or ``[ppo] demos``) adds behaviour cloning on
-demonstrations written by ``harv-jax optimal --save-demos`` (:mod:`harv_jax.training.demos`). The run is
-:func:`harv_jax.training.run.run_train`.
+demonstrations written by ``harv-jax optimal --save-demos`` ([`harv_jax.training.demos`][]). The run is
+[`harv_jax.training.run.run_train`][].
 """
 
 from __future__ import annotations

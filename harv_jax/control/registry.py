@@ -2,7 +2,7 @@
 
 Every command that flies a controller by name (``fly``, ``mc``, ``compare``, ``envelope``, ``quickstart``)
 looks it up here. Adding a controller is one module with a ``make_*(…) -> Controller`` factory plus one
-line in :data:`CONTROLLERS` (or one :func:`register` call from outside the package, as the tests do)::
+line in `CONTROLLERS` (or one [`register`][] call from outside the package, as the tests do)::
 
     register("toy", lambda opts: make_toy(), options=(), help="constant deflection")
 
@@ -12,7 +12,7 @@ estimate of a model-based observer of 0.5 Hz bandwidth (``harv_jax.control.obser
 that of the extended-state observer (the observer that also estimates the rate bias the model misses);
 ``rl+lp1.5``, ``hybrid+obs1`` alike.
 
-A builder takes the :class:`ControllerOptions` of the command line and returns a
+A builder takes the [`ControllerOptions`][] of the command line and returns a
 ``Controller(init, apply)`` (``harv_jax.control.base``); ``options`` names the fields it reads, so the
 commands know whether a run needs a policy (``"policy"``) or a zeta schedule (``"zeta"``) and record them.
 """
@@ -179,7 +179,7 @@ def register(
     options: Iterable[str] = (),
     help: str = "",
 ) -> None:
-    """Add a controller to :data:`CONTROLLERS` (ValueError if the name is taken or an option unknown)."""
+    """Add a controller to `CONTROLLERS` (ValueError if the name is taken or an option unknown)."""
     if name in CONTROLLERS:
         raise ValueError(f"controller {name!r} is already registered")
     options = tuple(options)

@@ -5,7 +5,7 @@ mu, gamma and the references, physical units) and returns a normalized action in
 affinely to the deflection limits exactly as the env does. A policy of 12 or 14 observations (trained with
 ``[env] observe_engage_airspeed`` or ``observe_tracking_integral``) also sees the airspeed of its first
 observation or the integral of its tracking error, which the controller keeps in its state
-(:class:`RLMemoryState`). Position and rate limits are then applied
+([`RLMemoryState`][]). Position and rate limits are then applied
 by the plant's actuator model, so "RL-only" is subject only to actuator saturation, as in the paper.
 """
 

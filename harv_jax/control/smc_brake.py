@@ -17,7 +17,7 @@ Monte Carlo runs: 100% recovered, median 8.2 s against the default SMC's 17.7 s)
 of ``compare`` the airspeed stays below V_switch and it flies as the SMC. The recovery criterion is still
 scored against the command's alpha_d (20 deg), never against alpha_brake.
 
-The schedule (alpha_brake_rad, v_switch_fps) is a pytree of arrays (:class:`BrakeSchedule`) carried in
+The schedule (alpha_brake_rad, v_switch_fps) is a pytree of arrays ([`BrakeSchedule`][]) carried in
 the controller state, so it is traced data of ``apply``: build the controller from a traced schedule
 inside a jitted function, or replace ``state.schedule`` after ``init``, to sweep it without recompiling.
 Crossing V_switch changes the reference the SMC sees, so the SMC's integral is reset there as on any
@@ -119,7 +119,7 @@ def brake_schedule(
     zoom_slope_fps_per_rad: float = 0.0,
     blend_fps: float = 0.0,
 ) -> BrakeSchedule:
-    """A checked :class:`BrakeSchedule` from Python numbers (UsageError naming a bad value).
+    """A checked [`BrakeSchedule`][] from Python numbers (UsageError naming a bad value).
 
     alpha_brake_rad must lie in the alpha envelope [ALPHA_MIN_RAD, ALPHA_MAX_RAD]; v_switch_fps in
     [0, V_MAX_FPS] (0: brake at every airspeed; V_MAX_FPS: never brake inside the envelope);
@@ -161,7 +161,7 @@ class SMCBrakeState(SMCState):
     """The SMC's state plus the reference schedule (per aircraft under vmap, like the SMC's).
 
     Attributes:
-        schedule: the :class:`BrakeSchedule` ``apply`` reads.
+        schedule: the [`BrakeSchedule`][] ``apply`` reads.
         brake_enabled: whether this recovery brakes at all (set at the first ``apply`` from the airspeed
             at engagement and ``schedule.v_engage_max_fps``).
     """

@@ -136,7 +136,7 @@ def wind_trig(
 
     XLA's CPU fusion otherwise copies a sine or cosine into every fusion that reads it (the SMC's Lie
     terms evaluated ~130 sines and cosines per aircraft instead of 8): they are computed in a one-trip loop
-    (:func:`harv_jax.dynamics.fusion.evaluated_once`). The derivative rule reuses the values instead of
+    (`harv_jax.dynamics.fusion.evaluated_once`). The derivative rule reuses the values instead of
     creating new trigonometric ops.
     """
     angles = jnp.stack([alpha, beta, mu, gamma])

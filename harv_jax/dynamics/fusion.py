@@ -3,10 +3,10 @@
 XLA's CPU fusion copies cheap elementwise producers into every consumer fusion, and ``arctan2`` is a scalar
 library call (~10 ns per element). Two tools:
 
-- :func:`evaluated_once`: ``fn(x)`` computed in a ``while_loop`` that runs once. A loop is a fusion
+- [`evaluated_once`][]: ``fn(x)`` computed in a ``while_loop`` that runs once. A loop is a fusion
   boundary XLA keeps (``optimization_barrier`` is removed before fusion on the CPU), so ``fn``'s outputs are
   materialized once. A custom JVP differentiates ``fn`` itself (forward and reverse mode work).
-- :func:`atan2` / :func:`airflow_angles`: in float32 on the CPU a vectorized ``arctan2`` (:func:`atan2_f32`,
+- [`atan2`][] / [`airflow_angles`][]: in float32 on the CPU a vectorized ``arctan2`` ([`atan2_f32`][],
   Cephes ``atanf``, <= 3.1 ulp); in the RK4 stages alpha and beta are computed once per stage in such a loop
   (without it XLA copied the polynomial into the 33-column table interpolation).
 
@@ -99,19 +99,19 @@ def atan2_f32(y: jax.Array, x: jax.Array) -> jax.Array:
 
 
 def _vectorized_atan2(*args: jax.Array) -> bool:
-    """Float32 on the CPU: :func:`atan2_f32` replaces the library's scalar ``arctan2``."""
+    """Float32 on the CPU: [`atan2_f32`][] replaces the library's scalar ``arctan2``."""
     return _on_cpu() and jnp.result_type(*args) == jnp.float32
 
 
 def atan2(y: jax.Array, x: jax.Array) -> jax.Array:
-    """``arctan2(y, x)``: :func:`atan2_f32` in float32 on the CPU (vectorized), else ``jnp.arctan2``."""
+    """``arctan2(y, x)``: [`atan2_f32`][] in float32 on the CPU (vectorized), else ``jnp.arctan2``."""
     return atan2_f32(y, x) if _vectorized_atan2(y, x) else jnp.arctan2(y, x)
 
 
 def airflow_angles(wa: jax.Array, ua: jax.Array, va: jax.Array, uw: jax.Array) -> tuple[jax.Array, jax.Array]:
     """(alpha, beta) = (arctan2(w, u), arctan2(v, sqrt(u^2 + w^2))) of the air-relative velocity, rad.
 
-    Float32 on the CPU: :func:`atan2_f32` of both, evaluated once (:func:`evaluated_once`); otherwise
+    Float32 on the CPU: [`atan2_f32`][] of both, evaluated once ([`evaluated_once`][]); otherwise
     ``jnp.arctan2``.
     """
     if not _vectorized_atan2(wa, ua, va, uw):

@@ -201,7 +201,7 @@ def to_wind(state: BodyState) -> jnp.ndarray:
 
     alpha = atan2(w, u), beta = atan2(v, sqrt(u^2 + w^2)) (= asin(v / V)); the direction cosines of alpha
     and beta are ratios of the velocity's components, not sines and cosines of the angles. Its five
-    ``arctan2`` are :func:`harv_jax.dynamics.fusion.atan2` (vectorized in float32 on the CPU, where the
+    ``arctan2`` are `harv_jax.dynamics.fusion.atan2` (vectorized in float32 on the CPU, where the
     library's ``arctan2`` is a scalar call per element).
     """
     u, v, w = state.uvw_fps[0], state.uvw_fps[1], state.uvw_fps[2]

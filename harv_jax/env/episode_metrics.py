@@ -1,6 +1,6 @@
 """Episode-end metrics of the recovery env, handed to the generic trainer as its ``episode_metrics_fn``.
 
-:func:`harv_episode_metrics` reads one env's ``info`` at the step an episode ends (``final_state_wind``,
+[`harv_episode_metrics`][] reads one env's ``info`` at the step an episode ends (``final_state_wind``,
 the wind-axis state [10], and ``final_obs``, the observation [11] holding the targets) by component name,
 and returns the scalars that ``harv_jax.ppo`` averages over the episodes of a period (``episode/<name>``).
 """

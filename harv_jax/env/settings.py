@@ -1,14 +1,14 @@
 """A training preset's environment: its ``[env]``, ``[reward]``, ``[randomization]``, ``[spin]`` tables.
 
-A preset's ``[env]`` table sets :class:`EnvConfig` (static); the other tables are stored inside the env
+A preset's ``[env]`` table sets [`EnvConfig`][] (static); the other tables are stored inside the env
 settings dict as nested tables (``{"episode_steps": 3000, "reward": {...}, "spin": {...}}``), so that a
 checkpoint's stored env settings rebuild the same environment on resume. Every value is checked here: a bad
-key or a value out of its range raises :class:`UsageError` naming the key and what is allowed.
+key or a value out of its range raises `UsageError` naming the key and what is allowed.
 
-- ``[reward]``: any field of :class:`RewardParams` (traced: changing it does not recompile). Scalars, or
+- ``[reward]``: any field of [`RewardParams`][] (traced: changing it does not recompile). Scalars, or
   lists of 3 (per channel alpha, beta, mu) for ``bonus_width_rad``, ``w_track``, ``track_clip_rad`` and
   of 4 for ``recovered_tol``.
-- ``[randomization]``: any field of :class:`RandomizationParams` (switches and ranges; only read when
+- ``[randomization]``: any field of [`RandomizationParams`][] (switches and ranges; only read when
   ``domain_randomization`` is on).
 - ``[spin]``: ``reset_prob`` (probability that an episode starts in a developed spin from the bank),
   ``bank_size``, ``spin_s_min``/``spin_s_max`` (time flown in the spin), ``bank_seed``,
@@ -16,7 +16,7 @@ key or a value out of its range raises :class:`UsageError` naming the key and wh
 - ``[eval]``: evaluation during training (read by ``harv-jax train``): ``every`` (periods), ``upset_runs``,
   ``spin_runs``, ``duration_s``.
 
-:func:`check_env_settings` validates all of it with plain Python (no jax array is made), so a preset is
+[`check_env_settings`][] validates all of it with plain Python (no jax array is made), so a preset is
 checked before anything is built.
 """
 
@@ -47,7 +47,7 @@ from harv_jax.guards import check_seed
 TABLES = ("reward", "randomization", "spin", "eval")
 
 #: Allowed range of every ``[env]`` setting (None: a switch, true or false); a setting whose
-#: :class:`EnvConfig` default is an int must be a whole number. ``h_floor_ft`` may also be ``-inf`` (no
+#: [`EnvConfig`][] default is an int must be a whole number. ``h_floor_ft`` may also be ``-inf`` (no
 #: ground) and must lie below ``h0_ft``.
 ENV_RANGES: dict[str, tuple[float, float] | None] = {
     "dt_s": (1e-4, 0.05),
@@ -169,7 +169,7 @@ def eval_settings(table: dict[str, Any] | None) -> EvalSettings:
 
 
 def check_reward_table(table: dict[str, Any] | None) -> None:
-    """Raise UsageError for an unknown key or a value outside :data:`REWARD_RANGES` in a ``[reward]``
+    """Raise UsageError for an unknown key or a value outside `REWARD_RANGES` in a ``[reward]``
     table."""
     for k, v in (table or {}).items():
         if k not in REWARD_RANGES:
@@ -200,7 +200,7 @@ _GUST_TAU_DEFAULTS = dict(zip(("gust_tau_min_s", "gust_tau_max_s"), DEFAULT_GUST
 
 def check_randomization_table(table: dict[str, Any] | None) -> None:
     """Raise UsageError for an unknown key, a non-bool switch or a range outside
-    :data:`RANDOMIZATION_RANGES` of a ``[randomization]`` table."""
+    `RANDOMIZATION_RANGES` of a ``[randomization]`` table."""
     fields = [f.name for f in dataclasses.fields(RandomizationParams)]
     n_noise = len(DEFAULT_NOISE_STD_MAX)
     for k, v in (table or {}).items():
@@ -258,7 +258,7 @@ def split_tables(env_table: dict[str, Any]) -> tuple[dict[str, Any], dict[str, d
 
 
 def env_config(flat: dict[str, Any]) -> EnvConfig:
-    """Validated EnvConfig from the ``[env]`` table's fields (types and :data:`ENV_RANGES`)."""
+    """Validated EnvConfig from the ``[env]`` table's fields (types and `ENV_RANGES`)."""
     fields = {f.name: f.default for f in dataclasses.fields(EnvConfig)}
     unknown = sorted(set(flat) - set(fields))
     if unknown:

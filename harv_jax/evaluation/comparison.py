@@ -1,9 +1,9 @@
 """Controllers compared on the spin scenario and a fixed upset state (``harv-jax compare``).
 
-For each scenario every controller flies from the same state (:func:`harv_jax.evaluation.flight.fly`);
-:func:`compare` returns a :class:`Comparison` with one metrics row per scenario and controller
+For each scenario every controller flies from the same state ([`harv_jax.evaluation.flight.fly`][]);
+[`compare`][] returns a [`Comparison`][] with one metrics row per scenario and controller
 (``summary.COMPARE_COLUMNS``) and, when ``smc`` is among the controllers, every other controller against it
-on the same scenarios (``paired.paired_vs_smc``); :func:`write_comparison` writes the overlaid time
+on the same scenarios (``paired.paired_vs_smc``); [`write_comparison`][] writes the overlaid time
 histories in the paper's four-figure layout, the metrics table (Markdown + CSV) and ``compare.json``.
 """
 
@@ -59,7 +59,7 @@ def omega_settling_time_s(
 
 def row_of(scenario: str, controller: str, res: FlightResult) -> dict[str, Any]:
     """The metrics-table row of one flight (times from engagement; ``recovery_time_vs_smc`` is None until
-    :func:`add_vs_smc` fills it in)."""
+    [`add_vs_smc`][] fills it in)."""
     m = res.metrics
     n_pre = int(round(res.t_engage_s / (res.t_s[1] - res.t_s[0]))) if len(res.t_s) > 1 else 0
     t_rec = np.nan if m["t_recover_s"] is None else m["t_recover_s"]
@@ -213,7 +213,7 @@ def write_tables(
     out_dir: Path, rows: list[dict], setting: str = "", vs_smc: dict[str, dict] | None = None
 ) -> None:
     """compare_metrics.csv and compare_metrics.md (``setting``: a sentence naming the policy, references
-    and h0, printed above the table; ``vs_smc``: :attr:`Comparison.vs_smc`, a second table in the .md)."""
+    and h0, printed above the table; ``vs_smc``: [`Comparison.vs_smc`][], a second table in the .md)."""
     with atomic.open_atomic(out_dir / "compare_metrics.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=COMPARE_COLUMNS)
         w.writeheader()

@@ -1,7 +1,7 @@
 """A recovery envelope map of registered controllers (``harv-jax envelope``): run and write its folder.
 
-:func:`envelope_study` flies every controller from every point of an ``EnvelopeGrid``
-(``harv_jax.evaluation.envelope_map``) and returns an :class:`EnvelopeStudy`; :func:`write_envelope`
+[`envelope_study`][] flies every controller from every point of an ``EnvelopeGrid``
+(``harv_jax.evaluation.envelope_map``) and returns an [`EnvelopeStudy`][]; [`write_envelope`][]
 writes envelope_recovery.png, envelope_time.png, envelope.json, envelope_grid.csv and envelope_grid.npz.
 """
 
@@ -28,7 +28,7 @@ if TYPE_CHECKING:
 
 @dataclasses.dataclass(frozen=True)
 class EnvelopeStudy:
-    """The outcome of :func:`envelope_study`.
+    """The outcome of [`envelope_study`][].
 
     Attributes:
         summary: the envelope.json document (``harv_jax.evaluation.summary.envelope_summary``).

@@ -1,8 +1,8 @@
-"""One closed-loop flight of a registered controller from a scenario, as a typed :class:`FlightResult`.
+"""One closed-loop flight of a registered controller from a scenario, as a typed [`FlightResult`][].
 
 Scenarios: ``"spin"`` (the pro-spin open loop for ``spin_s``, then the controller engages), ``"random"``
 (one state from the paper's reset bounds, drawn with the seed) or a wind state given as a dict of
-``WIND_STATE_NAMES`` values (ft/s, rad, rad/s, ft). :func:`write_flight` writes a ``harv-jax fly`` folder.
+``WIND_STATE_NAMES`` values (ft/s, rad, rad/s, ft). [`write_flight`][] writes a ``harv-jax fly`` folder.
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """A Monte Carlo study of registered controllers (``harv-jax mc``): run, summarize, write its folder.
 
-:func:`monte_carlo` flies every controller on the same sampled aircraft and initial states
-(``monte_carlo.sample_mc_inputs``, common random numbers) and returns a :class:`MonteCarloStudy`;
-:func:`write_monte_carlo` writes summary.json, the band figures and CSVs, terminal_errors.png and runs.csv.
+[`monte_carlo`][] flies every controller on the same sampled aircraft and initial states
+(``monte_carlo.sample_mc_inputs``, common random numbers) and returns a [`MonteCarloStudy`][];
+[`write_monte_carlo`][] writes summary.json, the band figures and CSVs, terminal_errors.png and runs.csv.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ if TYPE_CHECKING:
 
 @dataclasses.dataclass(frozen=True)
 class MonteCarloStudy:
-    """The outcome of :func:`monte_carlo`.
+    """The outcome of [`monte_carlo`][].
 
     Attributes:
         summary: the summary.json document (``harv_jax.evaluation.summary.mc_summary``).
@@ -204,9 +204,9 @@ def write_runs_csv(
 
 
 def write_monte_carlo(out_dir: Path, study: MonteCarloStudy, save_trajectories: bool = False) -> None:
-    """summary.json, bands_*.png/.csv (bands_all.png: every controller on one figure; all band plots share
-    one y-scale per variable), terminal_errors.png, runs.csv (and trajectories_*.npz: t_s [T],
-    alpha_beta_mu_rad [N, T, 3] every ``record_every`` steps, if asked)."""
+    """summary.json, bands_*.png/.csv (bands_all.png: every controller side by side, one column each; all
+    band plots share one y-scale per variable), terminal_errors.png, runs.csv (and trajectories_*.npz:
+    t_s [T], alpha_beta_mu_rad [N, T, 3] every ``record_every`` steps, if asked)."""
     from harv_jax.numfmt import write_json
     from harv_jax.plots.mc import (
         band_limits_deg,

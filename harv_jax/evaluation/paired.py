@@ -75,12 +75,12 @@ def paired_vs_reference(
 def paired_vs_smc(
     times: Mapping[str, tuple[Any, Any]], run_length_s: float, margin_s: float = PAIRED_MARGIN_S
 ) -> dict[str, dict[str, float | int | None]]:
-    """:func:`paired_vs_reference` against ``smc`` for every other controller.
+    """[`paired_vs_reference`][] against ``smc`` for every other controller.
 
     Args:
         times: controller -> (t_recover_s [N], recovered [N]), the same N runs for every controller.
         run_length_s: run length, s.
-        margin_s: see :func:`paired_vs_reference`.
+        margin_s: see [`paired_vs_reference`][].
 
     Returns:
         controller -> comparison block, for every controller but ``smc``; empty when ``smc`` is not in

@@ -9,7 +9,7 @@ deterministic policy, and is scored by ``compute_metrics`` (recovered = the crit
 10 s; recovery time).
 
 ``make_policy_eval(networks, batch, ...)`` returns ``evaluate(params, normalizer)`` for one seed; vmap it
-over a leading seed axis (:func:`make_seed_eval` does, and jits).
+over a leading seed axis ([`make_seed_eval`][] does, and jits).
 """
 
 from __future__ import annotations

@@ -1,18 +1,18 @@
 """The layout of every summary the commands write, owned here: the writers and ``harv_jax.report`` read it.
 
-- ``summary.json`` of ``harv-jax mc``: :func:`mc_summary` with one :func:`summarize_controller` block
+- ``summary.json`` of ``harv-jax mc``: [`mc_summary`][] with one [`summarize_controller`][] block
   per controller (and, when ``smc`` is in the run, a ``vs_smc`` block of
   ``harv_jax.evaluation.paired.paired_vs_reference`` in every other controller's);
-- ``envelope.json`` of ``harv-jax envelope``: :func:`envelope_summary` with :func:`summarize_envelope`
+- ``envelope.json`` of ``harv-jax envelope``: [`envelope_summary`][] with [`summarize_envelope`][]
   blocks;
-- ``metrics.json`` of ``harv-jax fly``: :func:`flight_summary` (settings :data:`FLY_SETTING_KEYS` and the
-  run's :func:`metrics_to_dict`);
-- ``compare.json`` / ``compare_metrics.csv`` of ``harv-jax compare``: rows with :data:`COMPARE_COLUMNS`.
+- ``metrics.json`` of ``harv-jax fly``: [`flight_summary`][] (settings `FLY_SETTING_KEYS` and the
+  run's [`metrics_to_dict`][]);
+- ``compare.json`` / ``compare_metrics.csv`` of ``harv-jax compare``: rows with `COMPARE_COLUMNS`.
 
 The top level of each document (its settings; the compare columns) is built in ``summary_documents`` and
 re-exported here. The report's tables (label, key path, format) are the ``*_ROWS`` below, next to the keys
 they read. One name per quantity: the fraction of runs recovered is ``recovery_rate``
-(:data:`RECOVERY_RATE`) everywhere.
+(`RECOVERY_RATE`) everywhere.
 """
 
 from __future__ import annotations

@@ -1,10 +1,10 @@
 """Demonstrations for a learned policy: the optimized trajectories in a versioned, pickle-free npz.
 
-Format ``harv_jax.optimal.demos``, version :data:`FORMAT_VERSION` (``numpy.savez_compressed``; every array
+Format ``harv_jax.optimal.demos``, version `FORMAT_VERSION` (``numpy.savez_compressed``; every array
 is numeric, bool or fixed-width unicode, so ``numpy.load(path, allow_pickle=False)`` reads it). N runs, T
 plant steps of ``dt_s`` from engagement:
 
-- ``format`` [] str: ``"harv_jax.optimal.demos"``; ``format_version`` [] int: :data:`FORMAT_VERSION`.
+- ``format`` [] str: ``"harv_jax.optimal.demos"``; ``format_version`` [] int: `FORMAT_VERSION`.
 - ``dt_s`` [] float: plant step, s; ``reference_rad`` [3]: target [alpha_d, beta_d, mu_d], rad.
 - ``states_wind`` [N, T + 1, 10]: wind states (V ft/s, alpha, beta rad, p, q, r rad/s, mu, gamma, chi rad,
   h ft).
@@ -18,7 +18,7 @@ plant steps of ``dt_s`` from engagement:
 
 The pair (``observations[:, t]``, ``actions[:, t]``) is what a policy would have had to output at step t
 to fly the demonstration. ``harv-jax train --demos FILE`` (``harv_jax.training.demos``) reads this format
-with :func:`load_demos_with_digest` and clones the pairs of the recovered runs.
+with [`load_demos_with_digest`][] and clones the pairs of the recovered runs.
 """
 
 from __future__ import annotations

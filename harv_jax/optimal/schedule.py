@@ -8,10 +8,10 @@ since engagement alone:
     o(t) = linear interpolation of the knot offsets o_j = amp * tanh(z_j) at t_j = j knot_dt_s,
            j = 0 .. n_knots - 1, and o = 0 from t = n_knots knot_dt_s on
 
-with amp = :data:`OFFSET_AMPLITUDE_RAD` per channel (alpha, beta, mu) and r(t)'s alpha clipped to the
+with amp = `OFFSET_AMPLITUDE_RAD` per channel (alpha, beta, mu) and r(t)'s alpha clipped to the
 alpha envelope. The decision variables are the raw knots z [n_knots, 3] (unconstrained: tanh keeps every
 iterate's reference bounded) and, fixed per run by the warm start, whether the braking schedule is on
-(v_switch = :data:`BRAKE_SWITCH_FPS` or :data:`NO_BRAKE_SWITCH_FPS`). After the last knot the reference is
+(v_switch = `BRAKE_SWITCH_FPS` or `NO_BRAKE_SWITCH_FPS`). After the last knot the reference is
 the target and the SMC settles on it as usual. The command is the SMC's, so every deflection the plant sees
 goes through the actuator model: each iterate respects the position and rate limits by construction.
 

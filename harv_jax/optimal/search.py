@@ -35,7 +35,7 @@ MOMENTUM = 0.7
 
 @dataclasses.dataclass(frozen=True)
 class SearchConfig:
-    """Static settings of the search (validated by :func:`check_search_config`).
+    """Static settings of the search (validated by [`check_search_config`][]).
 
     Attributes:
         horizon_s: optimization horizon, s (the surrogate's rollout).
@@ -105,7 +105,7 @@ class SearchInputs(struct.PyTreeNode):
 
 
 class SearchResult(struct.PyTreeNode):
-    """What :func:`search` returns (numpy leaves).
+    """What [`search`][] returns (numpy leaves).
 
     Attributes:
         z: [N, n_knots, 3] best raw knots of each run (by true recovery time).

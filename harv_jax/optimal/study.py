@@ -1,6 +1,6 @@
 """The optimal-recovery study: baselines, warm start, search, acceptance, on the Monte Carlo or one scenario.
 
-:func:`optimal_study` flies the registry's controllers (:data:`BASELINES`) on every run (the standard
+[`optimal_study`][] flies the registry's controllers (`BASELINES`) on every run (the standard
 closed loop and scoring, the Monte Carlo's common random numbers: ``sample_mc_inputs`` with the same seed
 gives ``harv-jax mc``'s runs), warm-starts the search of ``search`` on each run from the better of ``smc``
 and ``smc-brake`` (knots 0: that controller exactly), and reports as ``optimal`` per run the re-simulated
@@ -97,7 +97,7 @@ def state_scenario(
     state: dict[str, float], seed: int, aircraft: str | AircraftParams | None = None
 ) -> Scenario:
     """One run from a wind state given by name (``WIND_STATE_NAMES``), deflections 0 (``aircraft`` as in
-    :func:`single_scenario`)."""
+    [`single_scenario`][])."""
     from harv_jax.dynamics import WIND_STATE_NAMES
 
     x0 = jnp.asarray([state[n] for n in WIND_STATE_NAMES], jnp.float32)
@@ -144,7 +144,7 @@ def _baseline_fn(name: str, n_steps: int):
 def fly_baselines(
     scenario: Scenario, reference_rad: jnp.ndarray, n_steps: int, say: Callable[[str], None]
 ) -> dict[str, MCRunOutput]:
-    """Every controller of :data:`BASELINES` on every run (numpy leaves)."""
+    """Every controller of `BASELINES` on every run (numpy leaves)."""
     outs = {}
     for name in BASELINES:
         say(f"[optimal] {name}: {scenario.x0_wind.shape[0]} runs x {n_steps} steps ...")
@@ -166,7 +166,7 @@ def best_controller(outs: dict[str, MCRunOutput], run_s: float) -> tuple[np.ndar
 
 @dataclasses.dataclass(frozen=True)
 class OptimalStudy:
-    """What :func:`optimal_study` returns.
+    """What [`optimal_study`][] returns.
 
     Attributes:
         scenario: the runs.

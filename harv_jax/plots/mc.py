@@ -73,7 +73,7 @@ def plot_mc_bands(
         reference_rad: [3] references, rad.
         path: PNG path.
         title: figure title.
-        ylims_deg: optional (low, high) per variable, deg (:func:`band_limits_deg`: shared scales).
+        ylims_deg: optional (low, high) per variable, deg ([`band_limits_deg`][]: shared scales).
     """
     fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
     names = ("alpha", "beta", "mu")

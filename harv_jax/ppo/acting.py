@@ -6,9 +6,9 @@ auto-reset inside ``step``, ``info["truncation"]`` (time limit; the episode is b
 ``V(info["final_obs"])``) and ``info["final_obs"]`` (last observation of the episode that just ended).
 
 Episode metrics: an ``EpisodeMetricsFn`` maps one env's ``info`` to a dict of scalars; the trainer averages
-it over the episodes that end in a period (``episode/<name>``) and :func:`make_evaluate` records it at each
+it over the episodes that end in a period (``episode/<name>``) and [`make_evaluate`][] records it at each
 episode's end. The task side provides it (for the HARV env ``harv_jax.env.episode_metrics``); the default,
-:func:`default_episode_metrics`, takes the top-level scalar ``info`` entries.
+[`default_episode_metrics`][], takes the top-level scalar ``info`` entries.
 """
 
 from __future__ import annotations

@@ -1,16 +1,16 @@
 """Atomic training checkpoints: msgpack (flax.serialization) + fsync + atomic rename. Never pickle.
 
 A checkpoint is one file ``checkpoints/ckpt_<period>.msgpack`` holding every leaf of the
-:class:`~harv_jax.ppo.train.TrainingState` (params, optimizer state, normaliser, env state, PRNG keys as raw
-key data, counters) with its tree path, shape and dtype; the PPO config; the env config; the period index
-and the metrics history. It is written to a temporary file in the same folder, flushed, fsynced and renamed
-over the final name, so a SIGKILL leaves either the previous checkpoint or the new one, never a torn file.
-The newest ``KEEP`` checkpoints are kept. Each file carries a SHA-256 of its header and leaves, so a file
-torn or damaged afterwards (a full disk, a copy cut short, bit rot) is recognised: :func:`latest_intact`
-skips it and falls back to the newest intact one, and :func:`set_aside` renames it ``*.corrupt`` so that it
-is neither loaded nor counted by the pruning. Loading checks the format name and version, the checksum (files
-written before it existed have none), the config, and every leaf's path, shape and dtype against the state
-the current code would build; any mismatch is a one-line UsageError.
+[`TrainingState`][harv_jax.ppo.train.TrainingState] (params, optimizer state, normaliser, env state, PRNG
+keys as raw key data, counters) with its tree path, shape and dtype; the PPO config; the env config; the
+period index and the metrics history. It is written to a temporary file in the same folder, flushed, fsynced
+and renamed over the final name, so a SIGKILL leaves either the previous checkpoint or the new one, never a
+torn file. The newest ``KEEP`` checkpoints are kept. Each file carries a SHA-256 of its header and leaves,
+so a file torn or damaged afterwards (a full disk, a copy cut short, bit rot) is recognised:
+[`latest_intact`][] skips it and falls back to the newest intact one, and [`set_aside`][] renames it
+``*.corrupt`` so that it is neither loaded nor counted by the pruning. Loading checks the format name and
+version, the checksum (files written before it existed have none), the config, and every leaf's path, shape
+and dtype against the state the current code would build; any mismatch is a one-line UsageError.
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ class Restored(NamedTuple):
 
 
 class Choice(NamedTuple):
-    """The checkpoint :func:`latest_intact` picked: its path and payload, and the newer files it skipped."""
+    """The checkpoint [`latest_intact`][] picked: its path and payload, and the newer files it skipped."""
 
     path: Path
     payload: dict[str, Any]
@@ -243,7 +243,7 @@ def set_aside(path: str | Path) -> Path:
 
 
 def remove_stale_tmp(ckpt_dir: str | Path) -> list[Path]:
-    """Delete temporary files that a killed :func:`save` of another process left in ``ckpt_dir``."""
+    """Delete temporary files that a killed [`save`][] of another process left in ``ckpt_dir``."""
     d = Path(ckpt_dir)
     if not d.is_dir():
         return []
@@ -289,8 +289,8 @@ def restore_latest(ckpt_dir: str | Path, template: Any, cfg: PPOConfig) -> Resto
         template: the state the current code builds (e.g. ``jax.eval_shape`` of ``Trainer.init``).
         cfg: the config the run continues with; it must equal the stored one.
 
-    Damaged newer files are skipped (see :func:`latest_intact`; ``Restored.skipped`` lists them); they are
-    not renamed here (:func:`set_aside` does that).
+    Damaged newer files are skipped (see [`latest_intact`][]; ``Restored.skipped`` lists them); they are
+    not renamed here ([`set_aside`][] does that).
 
     Raises:
         UsageError: no checkpoint, none intact, wrong version, different config, or mismatched leaves.

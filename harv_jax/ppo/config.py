@@ -1,8 +1,8 @@
 """PPO configuration: a frozen dataclass, validation, derived sizes, and a generic TOML loader.
 
-A config file (:func:`load_file`) has a ``[ppo]`` table (fields of :class:`PPOConfig`) and whatever other
+A config file ([`load_file`][]) has a ``[ppo]`` table (fields of [`PPOConfig`][]) and whatever other
 tables its caller accepts (the HARV recipes in ``harv_jax.training.presets`` add ``[env]``, ``[reward]``
-...). Every bad value raises :class:`harv_jax.errors.UsageError` with a one-line message naming the value
+...). Every bad value raises `harv_jax.errors.UsageError` with a one-line message naming the value
 and what is allowed. Derived quantities (updates, periods, batch sizes) are computed by functions and never
 written back into the config.
 """

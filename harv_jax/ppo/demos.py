@@ -1,7 +1,7 @@
 """Demonstration pairs for behaviour cloning inside the PPO update (generic: arrays only, no file format).
 
 ``make_train(..., demos=(observations [M, O], actions [M, A]))`` puts the pairs on the devices once; every
-SGD step of an update clones a minibatch of them (:func:`sample_minibatches`), drawn uniformly with
+SGD step of an update clones a minibatch of them ([`sample_minibatches`][]), drawn uniformly with
 replacement from a stream of the update's own key, so that a run is reproducible from its seed.
 """
 

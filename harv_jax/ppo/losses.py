@@ -73,7 +73,7 @@ def successor_values(
     terminations: jax.Array,
     truncations: jax.Array,
 ) -> jax.Array:
-    """``next_values`` for :func:`compute_gae` from a rollout with auto-reset.
+    """``next_values`` for [`compute_gae`][] from a rollout with auto-reset.
 
     Args:
         values: [T, B] V(obs_t).
@@ -171,7 +171,7 @@ def ppo_loss(
     - pg_on * ent_coef * mean(entropy) + bc_coef * BC``; with ``clip_value_eps`` the value error is the max
     of the unclipped and the clipped (``V_old + clip(V - V_old, +-eps)``) squared errors. Advantages are
     standardised over the minibatch when ``normalize_advantage``. ``BC`` is the sum of
-    :func:`behaviour_cloning` of the policy mean toward ``batch.teacher_action`` (if given) and of the policy
+    [`behaviour_cloning`][] of the policy mean toward ``batch.teacher_action`` (if given) and of the policy
     mean at ``demo.obs`` toward ``demo.action`` (if given); with neither there is no BC term at all. The
     smoothness terms (CAPS, Mysore et al. 2021) add ``smooth_temporal_coef * action_change(mu(obs),
     mu(next_obs), next_mask) + smooth_spatial_coef * action_change(mu(obs), mu(perturbed_obs))`` when their

@@ -133,8 +133,8 @@ class PPONetworks(NamedTuple):
     def policy_and_value(self, params: PPOParams, obs: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
         """obs [..., O] -> (mean [..., A], log_std [..., A], value [...]) for a training batch.
 
-        Equal to :meth:`policy` and :meth:`value` to float rounding, computed feature-major by
-        :func:`mlp_feature_major` (faster gradients on CPU, see there).
+        Equal to [`policy`][] and [`value`][] to float rounding, computed feature-major by
+        [`mlp_feature_major`][] (faster gradients on CPU, see there).
         """
         mean = mlp_feature_major(params.policy["params"]["mlp"], obs)
         log_std = jnp.broadcast_to(params.policy["params"]["log_std"], mean.shape)
@@ -164,7 +164,7 @@ _dense_t.defvjp(_dense_t_fwd, _dense_t_bwd)
 
 
 def mlp_feature_major(mlp_params: Params, x: jax.Array) -> jax.Array:
-    """:class:`MLP` applied to ``x [..., I]`` from its parameters, with the batch as the last axis inside.
+    """[`MLP`][] applied to ``x [..., I]`` from its parameters, with the batch as the last axis inside.
 
     Same arithmetic as ``MLP.apply`` (``tanh(x W + b)`` per hidden layer, a linear output), but each layer
     is ``W^T h`` on ``h [features, batch]`` with a hand-written gradient, so that every dot of the forward and

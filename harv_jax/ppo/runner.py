@@ -1,15 +1,15 @@
 """The host driver of PPO training: init or resume, run periods, report, checkpoint, warm start.
 
-:func:`run_training` calls the compiled ``Trainer.period`` (:mod:`harv_jax.ppo.train`) once per period:
+[`run_training`][] calls the compiled ``Trainer.period`` ([`harv_jax.ppo.train`][]) once per period:
 fetch its metrics to the host, call ``progress_fn`` and ``period_hook``, checkpoint every
 ``cfg.checkpoint_every`` periods and at the last. ``resume=True`` continues from the newest intact
-checkpoint of ``run_dir`` (:mod:`harv_jax.ppo.checkpoint`).
+checkpoint of ``run_dir`` ([`harv_jax.ppo.checkpoint`][]).
 
 Multi-host (Python API; the ``harv-jax train`` command is single-process): start one process per host with
 the same script and, before anything creates a jax array, call ``jax.distributed.initialize(
 coordinator_address="host0:1234", num_processes=P, process_id=i)`` (on SLURM, Open MPI or TPU the arguments
 are found automatically); then ``make_train(..., devices=jax.devices())`` builds the mesh over all global
-devices (the default, :func:`~harv_jax.ppo.sharding.default_devices`, does the same on accelerators; on CPU
+devices (the default, `default_devices`, does the same on accelerators; on CPU
 it takes one local device), ``num_envs`` must divide by ``jax.device_count()``, and every process calls
 ``run_training`` with the same arguments. Metrics and parameters are replicated, so every process sees the
 same history; checkpoints all-gather the env-sharded state and only process 0 writes them (``run_dir`` must
@@ -38,7 +38,7 @@ from harv_jax.ppo.train import Trainer, TrainingState, make_train, seed_keys
 
 
 class TrainResult(NamedTuple):
-    """What :func:`run_training` returns.
+    """What [`run_training`][] returns.
 
     Attributes:
         state: final training state (leading [S] axis).
@@ -77,7 +77,7 @@ def warm_start(state: TrainingState, params: PPOParams, normalizer: obs_norm.Run
     fine-tuning from the policy with the run's own learning-rate schedule. Shardings are kept.
 
     Raises:
-        ValueError: from :func:`check_init_policy`.
+        ValueError: from [`check_init_policy`][].
     """
     check_init_policy(state, params, normalizer)
     old, treedef = jax.tree_util.tree_flatten((state.params, state.normalizer))
@@ -132,17 +132,17 @@ def run_training(
         progress_fn: called after each period as ``progress_fn(period_index, history_row)``.
         stop_after_periods: stop (after checkpointing) once this many periods are done in total; for tests
             that emulate an interrupted run.
-        episode_metrics_fn: see :func:`~harv_jax.ppo.train.make_train`.
+        episode_metrics_fn: see [`make_train`][harv_jax.ppo.train.make_train].
         trainer: a trainer already built by ``make_train`` for the same env and cfg (reuses its compiled
             functions; ``devices`` and ``episode_metrics_fn`` are then ignored).
-        init_policy: (params, normalizer) of one policy every seed starts from (:func:`warm_start`);
+        init_policy: (params, normalizer) of one policy every seed starts from ([`warm_start`][]);
             ignored on resume (the checkpoint has the state).
         period_hook: called after each period as ``period_hook(period_index, state)``; returns (entries
             added to that period's history row, e.g. evaluation metrics; stop: True ends training after this
             period's checkpoint, which is then always written).
 
     Returns:
-        A :class:`TrainResult`.
+        A [`TrainResult`][].
     """
     if trainer is None:
         trainer = make_train(env, cfg, env_params, devices, episode_metrics_fn)

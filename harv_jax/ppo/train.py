@@ -1,12 +1,12 @@
 """The compiled PPO training step (brax style), multi-seed by vmap, multi-device by ``jax.sharding``.
 
-``make_train(env, cfg)`` returns a :class:`Trainer` whose ``period(state, env_params)`` is jitted once and
+``make_train(env, cfg)`` returns a [`Trainer`][] whose ``period(state, env_params)`` is jitted once and
 runs ``updates_per_period(cfg)`` PPO updates inside a ``lax.scan``; each update is a rollout of ``num_envs``
 vmapped envs for ``unroll`` steps (``lax.scan``), GAE, then ``epochs`` x ``minibatches`` Adam steps
 (``lax.scan``). All of this is vmapped over ``num_seeds`` independent learners. The host loop that calls it
-once per period (fetch metrics, report progress, checkpoint) is :func:`harv_jax.ppo.runner.run_training`;
-the env interface and the episode-metrics hook are described in :mod:`harv_jax.ppo.acting`, the device
-layout in :mod:`harv_jax.ppo.sharding`.
+once per period (fetch metrics, report progress, checkpoint) is [`harv_jax.ppo.runner.run_training`][];
+the env interface and the episode-metrics hook are described in [`harv_jax.ppo.acting`][], the device
+layout in `harv_jax.ppo.sharding`.
 
 Staggered episodes (``cfg.stagger_episodes``): all envs reset together at init, so without it their episodes
 stay in step; every update then sees one phase of the episode only (all envs in the initial transient, or
@@ -74,21 +74,21 @@ def make_train(
     """Build the jitted init and period functions for ``env`` and ``cfg``.
 
     Args:
-        env: gymnax-style environment (see :mod:`harv_jax.ppo.acting`).
+        env: gymnax-style environment (see [`harv_jax.ppo.acting`][]).
         cfg: validated PPO config; its shapes and loop lengths are closed over (static).
         env_params: an example of the env parameter pytree (used for shapes only; the real one is an argument
             of ``init``/``period`` so that it can change without recompiling).
-        devices: devices to shard the envs over (default :func:`~harv_jax.ppo.sharding.default_devices`:
+        devices: devices to shard the envs over (default `default_devices`:
             all accelerators, or one CPU device).
         episode_metrics_fn: one env's ``info`` -> dict of scalars, averaged over the episodes that end in a
-            period and reported as ``episode/<name>`` (default :func:`default_episode_metrics`).
+            period and reported as ``episode/<name>`` (default [`default_episode_metrics`][]).
         demos: (observations [M, O], actions [M, A] in [-1, 1]) demonstration pairs, raw as the env
             observes (None: none). They are put on the devices once; every SGD step clones a minibatch of
             them drawn with the learner's key, through the learner's observation normalizer, with the
-            ``bc_coef`` schedule (the BC term of :func:`~harv_jax.ppo.losses.ppo_loss`).
+            ``bc_coef`` schedule (the BC term of [`ppo_loss`][harv_jax.ppo.losses.ppo_loss]).
 
     Returns:
-        A :class:`Trainer`.
+        A [`Trainer`][].
     """
     devices = list(sharding.default_devices() if devices is None else devices)
     ppo_config.check_devices(cfg, len(devices))

@@ -1,7 +1,7 @@
 """The types of the compiled PPO step: the per-seed training state, one rollout step and the trainer.
 
-:func:`harv_jax.ppo.train.make_train` builds a :class:`Trainer`; its ``period`` maps a
-:class:`TrainingState` to the next one and the period's metrics.
+[`harv_jax.ppo.train.make_train`][] builds a [`Trainer`][]; its ``period`` maps a
+[`TrainingState`][] to the next one and the period's metrics.
 """
 
 from __future__ import annotations
@@ -62,7 +62,7 @@ class Rollout(NamedTuple):
 
 
 class Trainer(NamedTuple):
-    """What :func:`make_train` returns.
+    """What `make_train` returns.
 
     Attributes:
         init: ``init(keys [S], env_params) -> TrainingState`` (jitted, sharded).

@@ -1,6 +1,6 @@
 """A watchdog that turns a stalled training period into a clear error instead of a hang.
 
-The training loop calls :meth:`Watchdog.beat` after every period. A background thread declares a stall and
+The training loop calls [`Watchdog.beat`][] after every period. A background thread declares a stall and
 calls ``on_stall(reason)`` when either
 
 * no beat came for ``limit_s`` seconds of wall time (``limit_s=None``: automatic, ``first_limit_s`` until
@@ -65,7 +65,7 @@ def compute_cpu_s() -> float:
 
 
 class Watchdog:
-    """Stall detector for a loop that calls :meth:`beat` after each unit of progress (see module doc).
+    """Stall detector for a loop that calls [`beat`][] after each unit of progress (see module doc).
 
     Args:
         on_stall: called once, from the watchdog thread, with a one-line reason (e.g. print and ``os._exit``).

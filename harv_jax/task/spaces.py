@@ -3,7 +3,7 @@
 Observation [11] (paper Table "Observation and Action Space"; physical units, ft/s, rad, rad/s):
 [V, alpha, beta, p, q, r, mu, gamma, alpha_d, beta_d, mu_d]: the first ``NUM_MEASURED`` components of the
 wind-axis state, then the target. Two optional layouts extend it with components kept from earlier
-observations (:class:`ObservationLayout`, :class:`ObservationMemory`):
+observations ([`ObservationLayout`][], [`ObservationMemory`][]):
 
 - ``[env] observe_engage_airspeed = true`` (12): ``V_engage``, the airspeed of the first observation of the
   recovery (ft/s, held for the whole recovery), so a policy can make choices that depend on how fast the
@@ -80,7 +80,7 @@ def action_to_command(action: jnp.ndarray, u_min_rad: jnp.ndarray, u_max_rad: jn
 
 
 def command_to_action(cmd_rad: jnp.ndarray, u_min_rad: jnp.ndarray, u_max_rad: jnp.ndarray) -> jnp.ndarray:
-    """Inverse of :func:`action_to_command`: deflections [3], rad -> normalized action [3]."""
+    """Inverse of [`action_to_command`][]: deflections [3], rad -> normalized action [3]."""
     return 2.0 * (cmd_rad - u_min_rad) / (u_max_rad - u_min_rad) - 1.0
 
 
@@ -125,7 +125,7 @@ class ObservationMemory:
     Attributes:
         v_engage_fps: airspeed of the first observation, ft/s (set at the first observation).
         engaged: whether an observation has been seen (``v_engage_fps`` is set).
-        integral_rad_s: [3] tracking-error integral, rad s (:func:`tracking_integral_step`).
+        integral_rad_s: [3] tracking-error integral, rad s ([`tracking_integral_step`][]).
     """
 
     v_engage_fps: jnp.ndarray

@@ -1,6 +1,6 @@
 """Demonstrations as a behaviour-cloning source: ``harv-jax train --demos FILE`` or ``[ppo] demos = "FILE"``.
 
-The file is what ``harv-jax optimal --save-demos`` writes (:mod:`harv_jax.optimal.demos`, read with its
+The file is what ``harv-jax optimal --save-demos`` writes ([`harv_jax.optimal.demos`][], read with its
 validating, pickle-free reader). The pairs (observation, action) of every step of the recovered runs become
 the demonstration set; every SGD step of the PPO update clones a minibatch of them (``make_train``'s
 ``demos``) with the ``bc_coef`` schedule, besides the online teacher's labels if the env has a teacher.

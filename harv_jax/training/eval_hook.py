@@ -23,7 +23,7 @@ from harv_jax.task.spaces import layout_of_size
 from harv_jax.training import outputs
 from harv_jax.training.in_loop import split_loop
 
-#: ``period_hook`` of :func:`harv_jax.ppo.runner.run_training`: (period index, state) -> (row entries, stop).
+#: ``period_hook`` of [`harv_jax.ppo.runner.run_training`][]: (period index, state) -> (row entries, stop).
 PeriodHook = Callable[[int, TrainingState], tuple[dict[str, Any], bool]]
 
 

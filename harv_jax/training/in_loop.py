@@ -129,7 +129,7 @@ def wrapped_env_functions(
     env: Env, controller: Any, step_no_reset: Any, nominal_model: bool = False
 ) -> tuple[Any, Any, Any, Any]:
     """(reset, reset_to, step, batch_step) of an env whose states are ``InLoopState`` (``env``'s state plus
-    ``controller``'s, started by :func:`controller_at_reset` on the episode's aircraft, or with
+    ``controller``'s, started by [`controller_at_reset`][] on the episode's aircraft, or with
     ``nominal_model`` on the env parameters' nominal one), given its ``step_no_reset``; ``step`` auto-resets
     as the plain env's does."""
 

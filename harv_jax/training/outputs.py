@@ -2,8 +2,8 @@
 
 ``metrics.csv``: one row per period, mean, std and per-seed value of every metric. ``policy/``:
 ``policy_seed<i>.npz`` for every seed, ``policy.npz`` and ``policy.stablehlo`` of the best seed
-(:func:`best_seed`: on the evaluation batch, or by final mean return). ``spin_bank.npz``: the spin-reset
-states (if spin resets are on). ``summary.json``: see :func:`run_summary`.
+([`best_seed`][]: on the evaluation batch, or by final mean return). ``spin_bank.npz``: the spin-reset
+states (if spin resets are on). ``summary.json``: see [`run_summary`][].
 """
 
 from __future__ import annotations
@@ -125,7 +125,7 @@ def export_policies(
     """Write ``policy/policy_seed<i>.npz`` per seed and ``policy.npz``/``policy.stablehlo`` of the best.
 
     The best seed is picked on the last period's evaluation batch when the run evaluates (the highest
-    recovered fraction, then the shortest mean recovery time; :func:`best_seed`), else by the highest mean
+    recovered fraction, then the shortest mean recovery time; [`best_seed`][]), else by the highest mean
     episode return in the last period; returns its index.
     """
     best = best_seed(history)
@@ -206,8 +206,8 @@ SEED_METRICS = {
 
 def seed_summary(row: dict[str, Any], target_recovery: float | None = None) -> dict[str, Any]:
     """Each seed's evaluation in ``row``, the IQM with a 95% bootstrap CI of each, and which seeds recover
-    at least ``target_recovery`` (default :data:`~harv_jax.evaluation.seed_stats.SEED_RECOVERY_BAR`) of
-    the evaluation batch."""
+    at least ``target_recovery`` (default
+    [`SEED_RECOVERY_BAR`][harv_jax.evaluation.seed_stats.SEED_RECOVERY_BAR]) of the evaluation batch."""
     per_seed = {name: row[key] for name, key in SEED_METRICS.items() if key in row}
     bar = seed_stats.SEED_RECOVERY_BAR if target_recovery is None else target_recovery
     return seed_stats.seed_table(per_seed, bar)

@@ -1,11 +1,11 @@
 """The HARV training recipes (presets), shipped as package data in ``harv_jax/training/presets/*.toml``.
 
-A preset file has a ``[ppo]`` table (fields of :class:`~harv_jax.ppo.config.PPOConfig`), an optional
+A preset file has a ``[ppo]`` table (fields of [`PPOConfig`][harv_jax.ppo.config.PPOConfig]), an optional
 ``[env]`` table that is passed to the environment's config, and optional ``[reward]``, ``[randomization]``,
 ``[spin]`` and ``[eval]`` tables, returned nested inside the env settings (``harv_jax.env.settings``
 validates them). A preset is named by its file name without ``.toml`` (``smoke``, ``paper-partial``,
 ``paper-full``, ``recovery``) or given as a path to a ``.toml`` file. A relative ``[ppo] demos`` path
-(:mod:`harv_jax.training.demos`) or ``[env] time_to_go`` file (:mod:`harv_jax.training.time_to_go`) is
+([`harv_jax.training.demos`][]) or ``[env] time_to_go`` file ([`harv_jax.training.time_to_go`][]) is
 taken from the preset file's folder.
 """
 

@@ -1,6 +1,6 @@
 """Run a training from parsed ``harv-jax train`` options: validate, build, train, write the outputs.
 
-:func:`run_train` is the whole run behind the command (:mod:`harv_jax.commands.train` parses the command
+[`run_train`][] is the whole run behind the command (`harv_jax.commands.train` parses the command
 line and calls it): a fresh run or ``--resume``, the progress bar, the watchdog and the run folder's outputs.
 """
 
@@ -98,9 +98,9 @@ def run_train(
     ``target_recovery``: stop at the first evaluation (``[eval]``) where every seed's RL-only recovery
     fraction is at least this (evaluation then runs every period unless ``[eval] every`` says otherwise).
     ``watchdog_s``: wall seconds without a finished period after which the run stops with exit code 3
-    (None: automatic, see :mod:`harv_jax.ppo.watchdog`; 0: no watchdog).
+    (None: automatic, see `harv_jax.ppo.watchdog`; 0: no watchdog).
     ``in_loop``: ``hybrid[:schedule]`` trains with the hybrid law inside the env step
-    (:mod:`harv_jax.training.in_loop`); recorded in ``config.json`` and in the policy files.
+    ([`harv_jax.training.in_loop`][]); recorded in ``config.json`` and in the policy files.
     ``aircraft``: the env's nominal aircraft, a name of ``harv_jax.aircraft.registry`` (None: the preset's
     ``[env] aircraft``, else the registry's default); recorded as ``aircraft`` in the env settings.
     """

@@ -1,8 +1,8 @@
 """The watchdog of ``harv-jax train``: a stalled run ends with a one-line error and exit code 3.
 
-:class:`~harv_jax.ppo.watchdog.Watchdog` (generic) watches for finished periods and CPU use; the handler here
-dumps every thread's Python stack to ``stall_traceback.txt`` in the run folder, prints one line naming the
-newest intact checkpoint, and exits with :data:`STALL_EXIT_CODE` (its checkpoints stay intact, so
+[`Watchdog`][harv_jax.ppo.watchdog.Watchdog] (generic) watches for finished periods and CPU use; the handler
+here dumps every thread's Python stack to ``stall_traceback.txt`` in the run folder, prints one line naming
+the newest intact checkpoint, and exits with [`STALL_EXIT_CODE`][] (its checkpoints stay intact, so
 ``--resume`` continues the run).
 """
 
@@ -54,7 +54,7 @@ def stall_handler(out_dir: Path, console: Any) -> Callable[[str], None]:
 
 
 def make_watchdog(watchdog_s: float | None, out_dir: Path, console: Any) -> Watchdog | None:
-    """The CLI's :class:`~harv_jax.ppo.watchdog.Watchdog` (not started); ``watchdog_s`` 0 turns it off."""
+    """The CLI's [`Watchdog`][harv_jax.ppo.watchdog.Watchdog] (not started); ``watchdog_s`` 0 turns it off."""
     if watchdog_s == 0:
         return None
     # an explicit limit also shortens the no-CPU-use limit (so a short --watchdog-s acts quickly)

@@ -1,7 +1,7 @@
 """The pieces of a training run before its first period: env, trainer, initial policy, run record.
 
-:func:`build_training` makes the recovery env from the env settings and the generic trainer with the HARV
-episode metrics (``harv_jax.env.episode_metrics``); :func:`write_run_record` writes the run folder's
+[`build_training`][] makes the recovery env from the env settings and the generic trainer with the HARV
+episode metrics (``harv_jax.env.episode_metrics``); [`write_run_record`][] writes the run folder's
 ``config.json`` (what ``--resume`` restarts from when no checkpoint was written) and its spin bank.
 """
 
@@ -32,7 +32,7 @@ from harv_jax.training.teacher import TEACHER_KEY
 
 
 class TrainingSetup(NamedTuple):
-    """What :func:`build_training` returns.
+    """What [`build_training`][] returns.
 
     Attributes:
         env: the recovery env.
@@ -67,7 +67,7 @@ def load_init_policy(
 
 def check_init_sizes(spec: str, pol: Policy, cfg: PPOConfig, observation_size: int) -> None:
     """UsageError naming ``--init-policy`` unless the policy's observation, action and hidden sizes are the
-    run's (checked before the env is built; :func:`load_init_policy` then checks every array)."""
+    run's (checked before the env is built; [`load_init_policy`][] then checks every array)."""
     got = (pol.networks.observation_size, pol.networks.action_size, tuple(pol.networks.actor.hidden_sizes))
     want = (observation_size, ACTION_SIZE, cfg.hidden_sizes)
     if got != want:
@@ -85,7 +85,7 @@ def build_training(
 
     Raises:
         UsageError: a bad env setting, an initial policy that does not fit the run's networks, or bad
-            demonstrations (:func:`~harv_jax.training.demos.load_run_demos`).
+            demonstrations ([`load_run_demos`][harv_jax.training.demos.load_run_demos]).
     """
     pol = None if init_policy is None else resolve_policy(init_policy)  # a bad file fails before the env
     try:
