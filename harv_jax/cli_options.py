@@ -162,6 +162,13 @@ DISTURBANCES_HELP = (
 )
 
 
+TURBULENCE_HELP = (
+    "Dryden turbulence of MIL-F-8785C: none, light, moderate, severe (probability of exceedance 1e-2, "
+    "1e-3, 1e-5 at the current altitude) or a sigma in ft/s; every controller of a run meets the same "
+    "white noise, drawn apart from the other disturbances."
+)
+
+
 def disturbances_option():
     """``--disturbances`` (default ``none``)."""
     return typer.Option("none", help=DISTURBANCES_HELP)
@@ -199,6 +206,8 @@ def disturbance_options(command: Callable[..., Any]) -> Callable[..., Any]:
     """
     keyword = inspect.Parameter.KEYWORD_ONLY
     added = [inspect.Parameter("disturbances", keyword, default=disturbances_option(), annotation=str)]
+    turbulence_option = typer.Option("none", help=TURBULENCE_HELP)
+    added.append(inspect.Parameter("turbulence", keyword, default=turbulence_option, annotation=str))
     for name, text in LEVEL_OPTION_HELP.items():
         option = typer.Option(None, parser=real_number, help=text)
         added.append(inspect.Parameter(name, keyword, default=option, annotation=float | None))
@@ -206,11 +215,12 @@ def disturbance_options(command: Callable[..., Any]) -> Callable[..., Any]:
     @functools.wraps(command)
     def wrapper(**kwargs: Any) -> Any:
         names = kwargs.pop("disturbances")
+        turbulence = kwargs.pop("turbulence")
         levels = {name: kwargs.pop(name) for name in LEVEL_OPTION_HELP}
         randomize = kwargs.get("randomize", False)
         knows = kwargs.get("controller_knows_aircraft", False)
         spec = disturbance_spec_from_cli(
-            names, **levels, randomize=randomize, controller_knows_aircraft=knows
+            names, **levels, randomize=randomize, controller_knows_aircraft=knows, turbulence=turbulence
         )
         return command(**kwargs, disturbance_spec=spec)
 
@@ -278,6 +288,7 @@ def disturbance_spec_from_cli(
     actuator_lag_s: float | None = None,
     randomize: bool = False,
     controller_knows_aircraft: bool = False,
+    turbulence: str | None = None,
 ):
     """The ``DisturbanceSpec`` of the disturbance options (UsageError naming a bad one)."""
     from harv_jax.evaluation.disturbance_spec import parse_disturbances
@@ -289,4 +300,6 @@ def disturbance_spec_from_cli(
         "model": model_error,
         "lag": actuator_lag_s,
     }
-    return parse_disturbances(disturbances, levels, gust_tau_s, randomize, controller_knows_aircraft)
+    return parse_disturbances(
+        disturbances, levels, gust_tau_s, randomize, controller_knows_aircraft, turbulence
+    )

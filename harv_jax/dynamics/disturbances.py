@@ -27,6 +27,7 @@ import numpy as np
 from flax import struct
 
 from harv_jax.aircraft.randomize import uniform16
+from harv_jax.dynamics.turbulence import TurbulenceParams
 
 #: The training env's default maxima (``env.config.default_randomization_params``; the env draws each
 #: episode's levels below them), and so the Monte Carlo's default levels.
@@ -57,12 +58,15 @@ class DisturbanceParams:
         delay_steps: int32 command delay, plant steps.
         gust_std_fps: stationary gust std per body axis, ft/s (0 = no gust).
         gust_tau_s: gust correlation time, s.
+        turbulence: Dryden turbulence (``dynamics.turbulence``), or None (none: the loop has no
+            turbulence state and draws nothing for it).
     """
 
     noise_std: jnp.ndarray
     delay_steps: jnp.ndarray
     gust_std_fps: jnp.ndarray
     gust_tau_s: jnp.ndarray
+    turbulence: TurbulenceParams | None = None
 
 
 def normals_from_uniform(u01: jnp.ndarray) -> jnp.ndarray:

@@ -208,6 +208,7 @@ def body_derivatives(
     u: jnp.ndarray,
     params: AircraftParams,
     wind_body_fps: jnp.ndarray | None = None,
+    wind_pqr_radps: jnp.ndarray | None = None,
 ) -> BodyState:
     """Time derivative of the singularity-free integration state.
 
@@ -221,6 +222,8 @@ def body_derivatives(
         u: [3] deflections [de, da, dr], rad.
         params: aircraft parameters.
         wind_body_fps: optional [3] wind velocity in body axes; aerodynamics see uvw - wind.
+        wind_pqr_radps: optional [3] rotation rate of the air in body axes (turbulence); the aerodynamic
+            damping sees pqr - wind_pqr, the rigid body pqr.
 
     Returns:
         BodyState of derivatives (the quaternion derivative is not renormalized).
@@ -231,7 +234,8 @@ def body_derivatives(
     ua, va, wa = air[0], air[1], air[2]
     uw, vt, ca, sa, cb, sb = airflow_direction(ua, va, wa)  # (cos, sin alpha; cos, sin beta)
     alpha, beta = airflow_angles(wa, ua, va, uw)  # arctan2 of both (vectorized on the CPU in float32)
-    fm = forces_moments(vt, alpha, beta, pqr, h, u, params, alpha_in_range=True)  # (an arctan2)
+    pqr_air = pqr if wind_pqr_radps is None else pqr - wind_pqr_radps
+    fm = forces_moments(vt, alpha, beta, pqr_air, h, u, params, alpha_in_range=True)  # (an arctan2)
     m, g = params.mass_slug, params.g
     L, D, Y = fm.L, fm.D, fm.Y
     q0, q1, q2, q3 = quat[0], quat[1], quat[2], quat[3]

@@ -30,6 +30,7 @@ def rk4_body_step(
     params: AircraftParams,
     dt_s: float | jnp.ndarray,
     wind_body_fps: jnp.ndarray | None = None,
+    wind_pqr_radps: jnp.ndarray | None = None,
 ) -> BodyState:
     """One RK4 step of the body-axis state (controls and wind held over the step).
 
@@ -37,7 +38,7 @@ def rk4_body_step(
     """
 
     def f(s):
-        return body_derivatives(s, u, params, wind_body_fps)
+        return body_derivatives(s, u, params, wind_body_fps, wind_pqr_radps)
 
     state = _restacked(state)
     k1 = f(state)

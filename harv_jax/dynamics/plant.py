@@ -42,9 +42,10 @@ def rigid_body_step(
     params: AircraftParams,
     dt_s: float | jnp.ndarray,
     wind_body_fps: jnp.ndarray | None = None,
+    wind_pqr_radps: jnp.ndarray | None = None,
 ) -> tuple[BodyState, jnp.ndarray]:
     """RK4 with the deflections ``delta_rad`` [3] held over the step, then the wind view: (body, x_wind)."""
-    new = rk4_body_step(body, delta_rad, params, dt_s, wind_body_fps)
+    new = rk4_body_step(body, delta_rad, params, dt_s, wind_body_fps, wind_pqr_radps)
     return new, to_wind(new)
 
 
@@ -55,6 +56,7 @@ def plant_step(
     params: AircraftParams,
     dt_s: float | jnp.ndarray,
     wind_body_fps: jnp.ndarray | None = None,
+    wind_pqr_radps: jnp.ndarray | None = None,
 ) -> PlantStep:
     """One plant step from deflections ``delta_rad`` [3] toward the command ``cmd_rad`` [3], rad.
 
@@ -64,13 +66,14 @@ def plant_step(
         cmd_rad: [3] deflection command, rad (clipped and rate limited by the actuator).
         params: aircraft.
         dt_s: step, s.
-        wind_body_fps: optional [3] body-axis wind (the env's gust), ft/s.
+        wind_body_fps: optional [3] body-axis wind (gust, turbulence), ft/s.
+        wind_pqr_radps: optional [3] body-axis rotation rate of the air (turbulence), rad/s.
 
     Returns:
         PlantStep(body, delta_rad, x_wind) after the step.
     """
     delta_new = actuator_step(delta_rad, cmd_rad, params, dt_s)
-    new, x_wind = rigid_body_step(body, delta_new, params, dt_s, wind_body_fps)
+    new, x_wind = rigid_body_step(body, delta_new, params, dt_s, wind_body_fps, wind_pqr_radps)
     return PlantStep(new, delta_new, x_wind)
 
 

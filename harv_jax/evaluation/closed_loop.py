@@ -8,7 +8,10 @@ One step (dt_s, controller at the plant rate):
 
 With disturbances (``disturbance``: ``harv_jax.dynamics.disturbances``, the training env's model) the
 controller sees x_k plus sensor noise, the plant flies the command ``delay_steps`` old, with the body-axis
-gust; the recorded and scored states are the true ones, relative to the air mass (``air_relative``: the
+gust and the Dryden turbulence (``dynamics.turbulence``: its own draws, from ``disturbance_key`` folded with
+`TURBULENCE_KEY_TAG`, so turning it on changes no other draw; its frame is the initial heading's; its
+scales follow the altitude and airspeed at the start of each step); the recorded and scored states are the
+true ones, relative to the air mass (``air_relative``: the
 angles the aerodynamics see; the inertial ones differ from them by up to gust / V, ~2 deg for 10 ft/s at
 300 ft/s). ``model_params`` builds the controller on another aircraft than the plant's (model error: e.g.
 the nominal aircraft while the plant flies a randomized one).
@@ -30,11 +33,30 @@ from flax import struct
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
 from harv_jax.dynamics import disturbances as dist
+from harv_jax.dynamics import turbulence as turb
 from harv_jax.dynamics.plant import plant_step
-from harv_jax.dynamics.state import BodyState, from_wind, is_finite, to_wind
+from harv_jax.dynamics.state import WIND_INDEX, BodyState, from_wind, is_finite, quat_to_dcm, to_wind, vt_fps
 from harv_jax.evaluation.metrics import RunMetrics, compute_metrics
 from harv_jax.task.criteria import Envelope, RecoveryCriterion
 from harv_jax.task.spec import DT_S
+
+#: Folded into a run's disturbance key for the turbulence draws.
+TURBULENCE_KEY_TAG = 0x54555242  # "TURB"
+
+
+def _wind(
+    state: BodyState,
+    gust_fps: jnp.ndarray,
+    tstate: turb.TurbulenceState | None,
+    params: turb.TurbulenceParams | None,
+    heading0_rad: jnp.ndarray,
+) -> tuple[jnp.ndarray, jnp.ndarray | None]:
+    """The air's body-axis velocity [3] (gust plus turbulence) and rotation rate [3] (None: none)."""
+    if params is None:
+        return gust_fps, None
+    uvw, p = turb.turbulence_velocity(tstate, params, state.pos_ft[2])
+    wind = gust_fps + turb.body_from_ned(quat_to_dcm(state.quat), turb.turbulence_ned(uvw, heading0_rad))
+    return wind, jnp.stack([p, jnp.zeros_like(p), jnp.zeros_like(p)])
 
 
 class Trajectory(struct.PyTreeNode):
@@ -155,23 +177,30 @@ def closed_loop(
         rec = (x, delta_new, u, info)
         return (state_new, delta_new, cstate_new, bad | ~u_ok | ~s_ok), rec
 
+    tparams = None if disturbance is None else disturbance.turbulence
+    heading0 = to_wind(body0)[WIND_INDEX["chi"]]
+
     def disturbed_step(carry, keys_k):
-        (state, delta, cstate, bad), (buffer, gust, noise8) = carry
-        key_k, dkey_k = keys_k
-        x = air_relative(state, gust)
+        (state, delta, cstate, bad), (buffer, gust, noise8, tstate) = carry
+        key_k, dkey_k, tkey_k = keys_k
+        wind, wind_pqr = _wind(state, gust, tstate, tparams, heading0)
+        x = air_relative(state, wind)
         u, cstate_new, info = controller.apply(cstate, dist.measured(x, noise8), reference_rad, key_k)
         u_ok = jnp.all(jnp.isfinite(u))
         u = jnp.where(u_ok, u, delta)
         buffer = dist.push_command(buffer, u)
         u_plant = dist.delayed_command(buffer, delay_steps)
-        state_new, delta_new, _ = plant_step(state, delta, u_plant, params, dt_s, gust)
+        state_new, delta_new, _ = plant_step(state, delta, u_plant, params, dt_s, wind, wind_pqr)
         s_ok = is_finite(state_new)
         state_new = jax.tree.map(lambda a, b: jnp.where(s_ok, a, b), state_new, state)
         normals = dist.step_normals(dkey_k, dtype)
         gust = dist.gust_step(gust, disturbance.gust_std_fps, disturbance.gust_tau_s, dt_s, normals[:3])
         noise8 = dist.sensor_noise(normals[3 : 3 + dist.NUM_NOISY_STATES], disturbance.noise_std)
+        if tparams is not None:
+            n6 = jax.random.normal(tkey_k, (turb.NUM_TURBULENCE_NORMALS,), dtype)
+            tstate = turb.turbulence_step(tstate, tparams, state.pos_ft[2], vt_fps(x), dt_s, n6)
         rec = (x, delta_new, u, info)
-        return ((state_new, delta_new, cstate_new, bad | ~u_ok | ~s_ok), (buffer, gust, noise8)), rec
+        return ((state_new, delta_new, cstate_new, bad | ~u_ok | ~s_ok), (buffer, gust, noise8, tstate)), rec
 
     keys = jax.random.split(key, n_steps)
     carry0 = (body0, delta0, cstate0, jnp.asarray(False))
@@ -184,8 +213,13 @@ def closed_loop(
         gust0 = dist.gust_init(normals0[:3], disturbance.gust_std_fps).astype(dtype)
         noise0 = dist.sensor_noise(normals0[3 : 3 + dist.NUM_NOISY_STATES], disturbance.noise_std)
         buffer0 = jnp.broadcast_to(delta0, (max_delay_steps + 1, 3))
-        carry0 = (carry0, (buffer0, gust0, noise0.astype(dtype)))
-        body_fn, xs = disturbed_step, (keys, dkeys[1:])
+        tstate0, tkeys = None, None  # no turbulence: no state, nothing drawn
+        if tparams is not None:
+            tkeys = jax.random.split(jax.random.fold_in(disturbance_key, TURBULENCE_KEY_TAG), n_steps + 1)
+            n6 = jax.random.normal(tkeys[0], (turb.NUM_TURBULENCE_NORMALS,), dtype)
+            tstate0, tkeys = turb.turbulence_init(n6), tkeys[1:]
+        carry0 = (carry0, (buffer0, gust0, noise0.astype(dtype), tstate0))
+        body_fn, xs = disturbed_step, (keys, dkeys[1:], tkeys)
 
     def chunk(carry, xs_chunk):
         carry, recs = jax.lax.scan(body_fn, carry, xs_chunk)
@@ -199,9 +233,10 @@ def closed_loop(
             carry0,
             jax.tree.map(lambda a: a.reshape((n_steps // record_every, record_every) + a.shape[1:]), xs),
         )
-    gust_final = None
+    wind_final = None
     if disturbance is not None:
-        carry, (_, gust_final, _) = carry
+        carry, (_, gust_final, _, tstate_final) = carry
+        wind_final = _wind(carry[0], gust_final, tstate_final, tparams, heading0)[0]
     state, delta, cstate, bad = carry
     x_rec, delta_rec, u_rec, info_rec = recs
     n_rec = n_steps // record_every
@@ -215,7 +250,7 @@ def closed_loop(
     return ClosedLoopResult(
         traj=traj,
         final_state=state,
-        x_final_wind=to_wind(state) if gust_final is None else air_relative(state, gust_final),
+        x_final_wind=to_wind(state) if wind_final is None else air_relative(state, wind_final),
         final_delta_rad=delta,
         final_ctrl_state=cstate,
         nonfinite=bad,

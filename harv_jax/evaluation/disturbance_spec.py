@@ -9,6 +9,10 @@
 - ``lag``, ``--actuator-lag-s T`` (0.03): a first-order surface lag T on the plant (the controllers'
   model has none).
 
+``--turbulence LEVEL``, given by itself: Dryden turbulence (``harv_jax.dynamics.turbulence``) of a named
+intensity (light, moderate, severe: MIL-F-8785C's probabilities of exceedance 1e-2, 1e-3, 1e-5) or of a
+sigma in ft/s, on top of the others; ``none`` (the default) is off.
+
 ``default`` is all five at these levels (noise, delay and gust at the training env's maxima); ``none``
 (the default) is the undisturbed Monte Carlo, bit for bit. Levels are fixed per run (the env draws each
 episode's levels between 0 and its maxima; a robustness figure states one level). The noise and gust
@@ -27,6 +31,7 @@ from harv_jax.dynamics.disturbances import (
     DEFAULT_GUST_STD_MAX_FPS,
     DEFAULT_GUST_TAU_S,
 )
+from harv_jax.dynamics.turbulence import INTENSITIES
 from harv_jax.errors import UsageError
 from harv_jax.task.spec import DT_S
 
@@ -50,6 +55,28 @@ LEVEL_OPTIONS: dict[str, tuple[str, str]] = {
 }
 #: Largest accepted level per disturbance (the delay: the command FIFO's size).
 MAX_LEVELS: dict[str, float] = {"noise": 20.0, "delay": 1000.0, "gust": 100.0, "model": 4.0, "lag": 1.0}
+#: Largest turbulence sigma, ft/s (MIL-F-8785C's chart ends at 31 ft/s).
+MAX_TURBULENCE_FPS = 100.0
+
+
+def parse_turbulence(text: str | None) -> str:
+    """``--turbulence``: ``none``, an intensity name or a sigma in ft/s (as text, normalized: ``6.5``);
+    UsageError naming the value and what is allowed."""
+    if text is None or str(text).strip() == "none":
+        return "none"
+    t = str(text).strip()
+    if t in INTENSITIES:
+        return t
+    try:
+        sigma = float(t)
+    except ValueError:
+        sigma = math.nan
+    if not (math.isfinite(sigma) and 0 <= sigma <= MAX_TURBULENCE_FPS):
+        raise UsageError(
+            f"--turbulence {text!r}: allowed: none, {', '.join(INTENSITIES)}, or a sigma in ft/s from 0 to "
+            f"{MAX_TURBULENCE_FPS:g}"
+        )
+    return "none" if sigma == 0 else f"{sigma:g}"  # sigma 0 is still air: the undisturbed loop, bit for bit
 
 
 @dataclasses.dataclass(frozen=True)
@@ -66,6 +93,7 @@ class DisturbanceSpec:
         actuator_lag_s: first-order actuator lag of the plant, s.
         controller_knows_aircraft: build the model-based controllers on the plant's own (randomized)
             aircraft instead of the nominal one.
+        turbulence: Dryden turbulence: ``none``, an intensity name or a sigma in ft/s (``parse_turbulence``).
     """
 
     noise_scale: float = 0.0
@@ -75,6 +103,7 @@ class DisturbanceSpec:
     model_error: float = 0.0
     actuator_lag_s: float = 0.0
     controller_knows_aircraft: bool = False
+    turbulence: str = "none"
 
     @property
     def levels(self) -> dict[str, float]:
@@ -100,7 +129,7 @@ class DisturbanceSpec:
     @property
     def in_loop(self) -> bool:
         """Whether noise, delay or gust act in the loop (the others change only the aircraft)."""
-        return self.noise_scale > 0 or self.delay_steps > 0 or self.gust_fps > 0
+        return self.noise_scale > 0 or self.delay_steps > 0 or self.gust_fps > 0 or self.turbulence != "none"
 
     def as_dict(self) -> dict[str, Any]:
         """The spec as summary.json records it."""
@@ -110,6 +139,7 @@ class DisturbanceSpec:
             "delay_steps": self.delay_steps,
             "gust_tau_s": self.gust_tau_s if self.gust_tau_s is not None else list(DEFAULT_GUST_TAU_S),
             "controller_knows_aircraft": self.controller_knows_aircraft,
+            "turbulence": self.turbulence,
             "units": {name: unit for name, (_, unit) in LEVEL_OPTIONS.items()},
         }
 
@@ -127,6 +157,7 @@ def parse_disturbances(
     gust_tau_s: float | None = None,
     randomize: bool = False,
     controller_knows_aircraft: bool = False,
+    turbulence: str | None = None,
 ) -> DisturbanceSpec:
     """The spec of a comma list of disturbance names and their level options.
 
@@ -138,6 +169,7 @@ def parse_disturbances(
         randomize: the ``--randomize`` flag: ``model`` at its level (1 unless given).
         controller_knows_aircraft: build the controllers on the plant's aircraft (only with a randomized
             aircraft).
+        turbulence: ``--turbulence`` (None: none).
 
     Raises:
         UsageError: an unknown name, ``none``/``default`` mixed with names, a bad or unused level.
@@ -184,14 +216,16 @@ def parse_disturbances(
         model_error=lv["model"],
         actuator_lag_s=lv["lag"],
         controller_knows_aircraft=controller_knows_aircraft,
+        turbulence=parse_turbulence(turbulence),
     )
 
 
 def describe_disturbances(spec: DisturbanceSpec) -> str:
     """One line: each active disturbance with its level and unit ("none" if none)."""
-    if not spec.active:
+    turbulence = [] if spec.turbulence == "none" else [f"turbulence {spec.turbulence}"]
+    if not spec.active and not turbulence:
         return "none"
-    parts = [f"{name} {spec.levels[name]:g} {LEVEL_OPTIONS[name][1]}" for name in spec.active]
+    parts = [f"{name} {spec.levels[name]:g} {LEVEL_OPTIONS[name][1]}" for name in spec.active] + turbulence
     if spec.model_error > 0:
         parts.append(
             "controllers on the "

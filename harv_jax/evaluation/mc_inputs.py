@@ -23,6 +23,7 @@ from harv_jax.aircraft.randomize import (
 )
 from harv_jax.dynamics.disturbances import DEFAULT_GUST_TAU_S, DEFAULT_NOISE_STD_MAX, DisturbanceParams
 from harv_jax.dynamics.state import WIND_INDEX
+from harv_jax.dynamics.turbulence import INTENSITIES, TurbulenceParams, turbulence_params
 from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
 from harv_jax.task.scenarios import sample_table_states
 from harv_jax.task.spec import H0_FT
@@ -122,6 +123,7 @@ def sample_mc_inputs(
             delay_steps=jnp.full((n_runs,), spec.delay_steps, jnp.int32),
             gust_std_fps=jnp.full((n_runs,), spec.gust_fps, dtype),
             gust_tau_s=tau.astype(dtype),
+            turbulence=_turbulence(spec.turbulence, params.b, n_runs, dtype),
         )
         disturbance_keys = jax.random.split(jax.random.fold_in(key, _DISTURBANCE_KEY_TAG), n_runs)
     return MCInputs(
@@ -132,6 +134,18 @@ def sample_mc_inputs(
         disturbance=disturbance,
         disturbance_keys=disturbance_keys,
         max_delay_steps=spec.delay_steps,
+    )
+
+
+def _turbulence(level: str, span_ft: jnp.ndarray, n_runs: int, dtype) -> TurbulenceParams | None:
+    """Per-run turbulence parameters of ``--turbulence`` (None: none), on each plant aircraft's span."""
+    if level == "none":
+        return None
+    one = turbulence_params(level if level in INTENSITIES else float(level), 1.0, dtype)
+    return TurbulenceParams(
+        sigma_table_fps=jnp.broadcast_to(one.sigma_table_fps, (n_runs,) + one.sigma_table_fps.shape),
+        wind_20ft_fps=jnp.full((n_runs,), one.wind_20ft_fps, dtype),
+        span_ft=jnp.broadcast_to(jnp.asarray(span_ft, dtype), (n_runs,)),
     )
 
 

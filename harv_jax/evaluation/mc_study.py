@@ -152,7 +152,8 @@ def write_runs_csv(
     path: Path, x0: np.ndarray, outs: dict[str, MCRunOutput], disturbances: DisturbanceSpec | None = None
 ) -> None:
     """One row per (controller, run): initial state, outcome, metrics; with disturbances on, their levels
-    (``noise_scale``, ``delay_ms``, ``gust_fps``, ``model_error``, ``actuator_lag_s``) as the last columns."""
+    (``noise_scale``, ``delay_ms``, ``gust_fps``, ``model_error``, ``actuator_lag_s``, ``turbulence``) as the
+    last columns."""
     from harv_jax.dynamics import WIND_STATE_NAMES
     from harv_jax.task.criteria import OUTCOME_NAMES
 
@@ -174,9 +175,9 @@ def write_runs_csv(
         ]
     )
     extra: list[str] = []
-    if disturbances is not None and disturbances.active:
-        header += ["noise_scale", "delay_ms", "gust_fps", "model_error", "actuator_lag_s"]
-        extra = [f"{v:g}" for v in disturbances.levels.values()]
+    if disturbances is not None and (disturbances.active or disturbances.turbulence != "none"):
+        header += ["noise_scale", "delay_ms", "gust_fps", "model_error", "actuator_lag_s", "turbulence"]
+        extra = [f"{v:g}" for v in disturbances.levels.values()] + [disturbances.turbulence]
     with atomic.open_atomic(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(header)
