@@ -27,12 +27,24 @@ def test_omega_settling_time():
 
 
 def test_compare_writes_tables_and_figures(monkeypatch, capsys, tmp_path):
+    from figure_checks import texts_outside
+
+    from harv_jax import atomic
+
+    save, outside = atomic.save_figure, {}
+
+    def checked(fig, path, **kw):  # every figure's texts inside it, as a reader sees it
+        outside[path.name] = texts_outside(fig)
+        return save(fig, path, **kw)
+
+    monkeypatch.setattr(atomic, "save_figure", checked)
     out = tmp_path / "c"
     code, _, err = _run(
         monkeypatch, capsys, "--controller", "smc,hybrid", "--policy", "shipped:partial", "--duration", "11",
         "--spin-s", "0.5", "--out", str(out),
     )  # fmt: skip
     assert code == 0, err
+    assert len(outside) >= 3 and not any(outside.values()), outside
     for f in ("spin_trajectories.png", "fixed_trajectories.png", "spin_hybrid.png", "compare_metrics.md"):
         assert (out / f).stat().st_size > 0
     rows = list(csv.DictReader((out / "compare_metrics.csv").open()))
