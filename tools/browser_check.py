@@ -74,7 +74,7 @@ def _render(page: Path, width_px: int) -> dict:
             CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
             "--disable-background-networking", "--disable-component-update", "--disable-sync",
             f"--user-data-dir={profile}", f"--window-size={width_px},900", "--virtual-time-budget=10000",
-            "--dump-dom", probed.as_uri(),
+            "--dump-dom", probed.resolve().as_uri(),
         ]  # fmt: skip
         dom = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False).stdout
     probed.unlink()
@@ -104,8 +104,10 @@ def main(argv: list[str] | None = None) -> int:
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         pages: list[tuple[str, Path]] = []
-        for rep in args.report:
-            pages.append((str(rep), rep))
+        for i, rep in enumerate(args.report):  # standalone: a copy is checked, the run folder untouched
+            copy = Path(tmp) / f"report-{i}.html"
+            shutil.copyfile(rep, copy)
+            pages.append((str(rep), copy))
         if args.page:
             site = Path(tmp) / "site"
             shutil.copytree(args.site, site)
@@ -116,7 +118,8 @@ def main(argv: list[str] | None = None) -> int:
                 r.update(page=name, window_px=w, failures=_failures(r))
                 results.append(r)
                 print(f"{name} @ {w}px: {'ok' if not r['failures'] else 'FAILS ' + ', '.join(r['failures'])}")
-    doc = {"chromium": version, "machine": platform.machine(), "pages": results}
+    command = "python tools/browser_check.py " + " ".join(sys.argv[1:] if argv is None else argv)
+    doc = {"command": command, "chromium": version, "machine": platform.machine(), "pages": results}
     doc["all_pass"] = all(not r["failures"] for r in results)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(doc, indent=1) + "\n")
