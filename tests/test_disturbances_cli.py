@@ -62,3 +62,30 @@ def test_a_command_reads_the_policy_file_once(monkeypatch):
     policy._load_file.cache_clear()
     build_controller("rl", options)
     assert len(reads) == 2  # the count sees reads: a cleared cache reads again
+
+
+def test_turbulence_on_mc_and_fly_is_recorded_and_its_wind_written(monkeypatch, capsys, tmp_path, damper):
+    """``--turbulence``: the level in runs.csv and summary.json (sigma 0 is still air: ``none``); fly writes
+    the air mass's body-axis velocity next to the states."""
+    import csv
+
+    from harv_jax.evaluation.disturbance_spec import parse_turbulence
+
+    assert parse_turbulence("0") == parse_turbulence(None) == "none" and parse_turbulence("6.50") == "6.5"
+    base = ["--controller", damper, "--runs", "3", "--duration", "10.5", "--seed", "5"]
+    code, _, err = cli_run(
+        monkeypatch, capsys, "mc", *base, "--turbulence", "moderate", "--out", tmp_path / "t"
+    )
+    assert code == 0, err
+    rows = list(csv.DictReader((tmp_path / "t" / "runs.csv").open()))
+    assert [r["turbulence"] for r in rows] == ["moderate"] * 3
+    doc = json.loads((tmp_path / "t" / "summary.json").read_text())["disturbances"]
+    assert doc["turbulence"] == "moderate" and doc["active"] == ["turbulence"]
+    code, _, err = cli_run(
+        monkeypatch, capsys, "fly", "--controller", damper, "--scenario", "random", "--duration", "10.5",
+        "--turbulence", "severe", "--out", tmp_path / "fly",
+    )  # fmt: skip
+    assert code == 0, err
+    rows = list(csv.DictReader((tmp_path / "fly" / "trajectory.csv").open()))
+    wind = [[float(r[f"wind_{c}_fps"]) for c in "uvw"] for r in rows]
+    assert all(w == w for w in wind[-1]) and max(abs(w[1]) for w in wind) > 1.0  # severe: ~20 ft/s std

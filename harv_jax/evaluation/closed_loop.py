@@ -40,6 +40,8 @@ from harv_jax.evaluation.metrics import RunMetrics, compute_metrics
 from harv_jax.task.criteria import Envelope, RecoveryCriterion
 from harv_jax.task.spec import DT_S
 
+#: ``Trajectory.info`` key of the air's body-axis velocity [3], ft/s (gust and turbulence), with disturbances.
+WIND_INFO_KEY = "wind_body_fps"
 #: Folded into a run's disturbance key for the turbulence draws.
 TURBULENCE_KEY_TAG = 0x54555242  # "TURB"
 
@@ -199,6 +201,7 @@ def closed_loop(
         if tparams is not None:
             n6 = jax.random.normal(tkey_k, (turb.NUM_TURBULENCE_NORMALS,), dtype)
             tstate = turb.turbulence_step(tstate, tparams, state.pos_ft[2], vt_fps(x), dt_s, n6)
+        info = {**info, WIND_INFO_KEY: wind}  # the air mass the plant flew in (fly writes it out)
         rec = (x, delta_new, u, info)
         return ((state_new, delta_new, cstate_new, bad | ~u_ok | ~s_ok), (buffer, gust, noise8, tstate)), rec
 

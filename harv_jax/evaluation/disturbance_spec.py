@@ -118,8 +118,9 @@ class DisturbanceSpec:
 
     @property
     def active(self) -> tuple[str, ...]:
-        """Names of the disturbances that are on."""
-        return tuple(n for n, v in self.levels.items() if v > 0)
+        """Names of the disturbances that are on (``turbulence`` last, when on)."""
+        on = tuple(n for n, v in self.levels.items() if v > 0)
+        return on + (("turbulence",) if self.turbulence != "none" else ())
 
     @property
     def delay_steps(self) -> int:
@@ -222,10 +223,11 @@ def parse_disturbances(
 
 def describe_disturbances(spec: DisturbanceSpec) -> str:
     """One line: each active disturbance with its level and unit ("none" if none)."""
-    turbulence = [] if spec.turbulence == "none" else [f"turbulence {spec.turbulence}"]
-    if not spec.active and not turbulence:
+    if not spec.active:
         return "none"
-    parts = [f"{name} {spec.levels[name]:g} {LEVEL_OPTIONS[name][1]}" for name in spec.active] + turbulence
+    parts = [f"{name} {level:g} {LEVEL_OPTIONS[name][1]}" for name, level in spec.levels.items() if level > 0]
+    if spec.turbulence != "none":
+        parts.append(f"turbulence {spec.turbulence}")
     if spec.model_error > 0:
         parts.append(
             "controllers on the "

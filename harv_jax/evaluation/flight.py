@@ -47,6 +47,8 @@ class FlightResult:
         metrics: the closed loop's ``metrics_to_dict``.
         spin: the spin check of the open loop (spin scenario of >= 1 s), else None.
         x0: the scenario's initial wind state by name.
+        wind_body_fps: [T, 3] body-axis velocity of the air mass (gust and turbulence), ft/s (NaN before
+            engagement), with disturbances; else None.
     """
 
     t_s: np.ndarray
@@ -61,6 +63,7 @@ class FlightResult:
     metrics: dict[str, Any]
     spin: dict[str, Any] | None
     x0: dict[str, float]
+    wind_body_fps: np.ndarray | None = None
 
 
 @functools.lru_cache(maxsize=8)
@@ -190,6 +193,8 @@ def fly(
     x0_dict = {n: float(v) for n, v in zip(WIND_STATE_NAMES, np.asarray(x0), strict=True)}
     reference = jnp.asarray([target_alpha_rad, 0.0, 0.0], jnp.float32)
     options = ControllerOptions(policy=policy, zeta=zeta, switching=switching)
+    from harv_jax.evaluation.closed_loop import WIND_INFO_KEY
+
     spec = disturbances or DisturbanceSpec()
     extra = {}
     if spec.active:
@@ -233,6 +238,7 @@ def fly(
         metrics=metrics_to_dict(m),
         spin=spin,
         x0=x0_dict,
+        wind_body_fps=None if WIND_INFO_KEY not in info else np.concatenate([nan3, info[WIND_INFO_KEY]]),
     )
 
 
@@ -258,6 +264,9 @@ def write_flight(out_dir: Path, res: FlightResult, settings: dict[str, Any]) -> 
         names += tuple(f"{n}_fb" for n in CONTROL_NAMES)
         cols_out += [hy["zeta"], hy["fallback"], hy["u_rl_rad"], hy["u_fb_rad"]]
         plot_hybrid(t, hy, out_dir / "hybrid.png", res.t_engage_s, res.u_cmd_rad)
+    if res.wind_body_fps is not None:
+        names += ("wind_u_fps", "wind_v_fps", "wind_w_fps")
+        cols_out.append(res.wind_body_fps)
     atomic.savetxt(
         out_dir / "trajectory.csv",
         np.column_stack(cols_out),

@@ -175,7 +175,7 @@ def write_runs_csv(
         ]
     )
     extra: list[str] = []
-    if disturbances is not None and (disturbances.active or disturbances.turbulence != "none"):
+    if disturbances is not None and disturbances.active:
         header += ["noise_scale", "delay_ms", "gust_fps", "model_error", "actuator_lag_s", "turbulence"]
         extra = [f"{v:g}" for v in disturbances.levels.values()] + [disturbances.turbulence]
     with atomic.open_atomic(path, "w", newline="") as f:
