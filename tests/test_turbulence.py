@@ -204,6 +204,7 @@ def _fly(turbulence, seed: int = 5):
     return run(dist)
 
 
+@pytest.mark.slow  # two compiles of the plant (~20 s); the CLI test flies turbulence in the default suite
 def test_in_the_loop_turbulence_draws_apart_and_moves_the_air_mass():
     """Turbulence on changes no other draw: the sensor noise of a run is the same with and without it; with
     sigma 0 the flight equals the one without turbulence to float rounding; moderate turbulence moves it."""
