@@ -70,3 +70,16 @@ def test_terminal_errors_draw_what_their_labels_name_and_keep_texts_inside(tmp_p
         assert sorted(ln.get_xdata()[0] for ln in dotted) == [-0.5, 0.5]
         lo, hi = ax.get_xlim()
         assert lo < -0.5 and hi > 0.5  # the named lines are on the panel
+
+
+def test_training_curve_keeps_a_long_title_inside(tmp_path, figures):
+    from harv_jax.plots.training import plot_training_curve
+
+    history = [
+        {"env_steps": 1000 * (k + 1), "episode_return": [float(k), k + 1.0, k - 1.0],
+         "episode/recovered": [0.1 * k] * 3, "episode/terminated": [0.05] * 3}
+        for k in range(10)
+    ]  # fmt: skip
+    title = "harv-jax train --preset teacher --seeds 5 --steps 3000000 --out runs/teacher_41 (5 seeds) " * 2
+    plot_training_curve(tmp_path / "curve.png", history, title)
+    assert figures[str(tmp_path / "curve.png") + ":outside"] == []

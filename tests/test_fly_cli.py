@@ -142,6 +142,17 @@ def test_fly_spin(monkeypatch, capsys, tmp_path):
 
 
 def test_fly_hybrid_with_shipped_partial_policy(monkeypatch, capsys, tmp_path):
+    from figure_checks import texts_outside
+
+    from harv_jax import atomic
+
+    save, outside = atomic.save_figure, {}
+
+    def checked(fig, path, **kw):  # every figure's texts inside it, as a reader sees it
+        outside[path.name] = texts_outside(fig)
+        return save(fig, path, **kw)
+
+    monkeypatch.setattr(atomic, "save_figure", checked)
     code, out, err = _run(
         monkeypatch, capsys, "--controller", "hybrid", "--policy", "shipped:partial", "--scenario", "random",
         "--duration", DURATION, "--out", str(tmp_path / "h"),
@@ -149,6 +160,8 @@ def test_fly_hybrid_with_shipped_partial_policy(monkeypatch, capsys, tmp_path):
     assert code == 0, err
     data, header, doc = _check_outputs(tmp_path / "h", 50, "hybrid")
     assert (tmp_path / "h" / "hybrid.png").stat().st_size > 0
+    assert set(outside) == {"trajectory.png", "sliding.png", "hybrid.png"}
+    assert not any(outside.values()), outside
     z = data[:, header.index("zeta")]
     assert np.all((z >= 0) & (z <= 1))
     assert doc["policy"] == "shipped:partial" and doc["zeta_schedule"] == "simplex"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -45,7 +46,7 @@ def plot_training_curve(path: Path, history: list[dict[str, Any]], title: str) -
     ax.set_ylim(-0.02, 1.02)
     ax.grid(alpha=0.3)
     ax.legend()
-    fig.suptitle(title)
+    fig.suptitle(textwrap.fill(title, width=110))  # a long command stays inside the figure
     fig.tight_layout()
     atomic.save_figure(fig, path, dpi=120)
     plt.close(fig)
