@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+from pathlib import Path
 
 import jax
 import pytest
@@ -52,3 +53,21 @@ def damper():
 
     with registered("damper", make_damper, "rate damper (tests)") as name:
         yield name
+
+
+@pytest.fixture
+def figure_texts(monkeypatch):
+    """Every figure harv-jax saves during the test, checked as a reader sees it before it is written:
+    file name -> the texts drawn outside the figure (``figure_checks.texts_outside``; [] when all fit)."""
+    from figure_checks import texts_outside
+
+    from harv_jax import atomic
+
+    save, outside = atomic.save_figure, {}
+
+    def checked(fig, path, **kw):
+        outside[Path(path).name] = texts_outside(fig)
+        return save(fig, path, **kw)
+
+    monkeypatch.setattr(atomic, "save_figure", checked)
+    return outside

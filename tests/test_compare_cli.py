@@ -26,18 +26,8 @@ def test_omega_settling_time():
     assert omega_settling_time_s(t, x) is None
 
 
-def test_compare_writes_tables_and_figures(monkeypatch, capsys, tmp_path):
-    from figure_checks import texts_outside
-
-    from harv_jax import atomic
-
-    save, outside = atomic.save_figure, {}
-
-    def checked(fig, path, **kw):  # every figure's texts inside it, as a reader sees it
-        outside[path.name] = texts_outside(fig)
-        return save(fig, path, **kw)
-
-    monkeypatch.setattr(atomic, "save_figure", checked)
+def test_compare_writes_tables_and_figures(monkeypatch, capsys, tmp_path, figure_texts):
+    outside = figure_texts
     out = tmp_path / "c"
     code, _, err = _run(
         monkeypatch, capsys, "--controller", "smc,hybrid", "--policy", "shipped:partial", "--duration", "11",

@@ -148,7 +148,7 @@ def test_bad_flags_are_one_line_errors(monkeypatch, capsys, tmp_path, args, need
     assert not (tmp_path / "o").exists()
 
 
-def test_cli_writes_outputs_and_refuses_existing_dir(monkeypatch, capsys, tmp_path, damper):
+def test_cli_writes_outputs_and_refuses_existing_dir(monkeypatch, capsys, tmp_path, damper, figure_texts):
     """The files of ``envelope`` (a cheap registered controller: the point is the outputs, not the SMC)."""
     out = tmp_path / "env"
     args = ["--grid", "V0=300,900:alpha0", "--n", "3", "--duration", "10.5", "--fixed", "h0=20000",
@@ -157,6 +157,8 @@ def test_cli_writes_outputs_and_refuses_existing_dir(monkeypatch, capsys, tmp_pa
     assert code == 0, err
     for f in ("envelope_recovery.png", "envelope_time.png", "envelope.json", "envelope_grid.csv"):
         assert (out / f).stat().st_size > 0, f
+    assert {"envelope_recovery.png", "envelope_time.png"} <= set(figure_texts)
+    assert not any(figure_texts.values()), figure_texts  # every text inside its figure
     doc = json.loads((out / "envelope.json").read_text())
     assert doc["grid"]["x"]["name"] == "V0" and doc["grid"]["x"]["values"] == [300.0, 600.0, 900.0]
     assert doc["grid"]["fixed_state"]["h"] == 20_000.0 and "V" not in doc["grid"]["fixed_state"]

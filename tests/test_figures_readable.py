@@ -14,7 +14,7 @@ CONTROLLERS = ("smc", "smc-brake", "smc-brake-zoom-soft", "rl", "hybrid")
 
 @pytest.fixture
 def figures(monkeypatch):
-    """Every figure a plot function saves, checked before it is written."""
+    """Every figure a plot function saves, by full path, and (``path:outside``) what of it lies outside."""
     seen: dict[str, object] = {}
     save = atomic.save_figure
 

@@ -141,18 +141,8 @@ def test_fly_spin(monkeypatch, capsys, tmp_path):
     np.testing.assert_allclose(data[:50, header.index("de_cmd")], -0.436)  # pro-spin command held
 
 
-def test_fly_hybrid_with_shipped_partial_policy(monkeypatch, capsys, tmp_path):
-    from figure_checks import texts_outside
-
-    from harv_jax import atomic
-
-    save, outside = atomic.save_figure, {}
-
-    def checked(fig, path, **kw):  # every figure's texts inside it, as a reader sees it
-        outside[path.name] = texts_outside(fig)
-        return save(fig, path, **kw)
-
-    monkeypatch.setattr(atomic, "save_figure", checked)
+def test_fly_hybrid_with_shipped_partial_policy(monkeypatch, capsys, tmp_path, figure_texts):
+    outside = figure_texts
     code, out, err = _run(
         monkeypatch, capsys, "--controller", "hybrid", "--policy", "shipped:partial", "--scenario", "random",
         "--duration", DURATION, "--out", str(tmp_path / "h"),

@@ -82,7 +82,8 @@ def plot_outcome_maps(
     axes[0].set_ylabel(y_label)
     labels = outcome_labels(outcome_names, duration_s)
     handles = [Patch(color=OUTCOME_COLORS[i], label=lab) for i, lab in enumerate(labels)]
-    fig.legend(handles=handles, loc="outside lower center", ncol=min(n_codes, 3), fontsize=8, frameon=False)
+    ncol = min(n_codes, 3, max(1, int(fig.get_figwidth() // 3.0)))  # a legend column needs about 3 in
+    fig.legend(handles=handles, loc="outside lower center", ncol=ncol, fontsize=8, frameon=False)
     fig.suptitle(title or "recovery outcome", fontsize=10)
     return _save(fig, path)
 
