@@ -16,7 +16,7 @@ from typing import Any
 
 import typer
 
-from harv_jax.control.registry import DEFAULT_ZETA, ControllerOptions
+from harv_jax.control.registry import DEFAULT_ZETA, ControllerOptions, check_options_apply
 from harv_jax.errors import UsageError
 from harv_jax.task.spec import ALPHA_MAX_RAD, ALPHA_MIN_RAD, RECOVERY_HOLD_S
 
@@ -66,8 +66,6 @@ def controller_options(
 ) -> ControllerOptions:
     """The controller options of a command; UsageError if one was given that none of the controllers
     ``names`` reads (``registry.check_options_apply``). Options not given take their defaults."""
-    from harv_jax.control.registry import check_options_apply
-
     given = {"policy": policy, "zeta": zeta, "switching": switching}
     check_options_apply(names, {k: v for k, v in given.items() if v is not None})
     return ControllerOptions(policy=policy, zeta=zeta or DEFAULT_ZETA, switching=switching or "sat")

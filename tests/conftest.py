@@ -58,15 +58,22 @@ def damper():
 @pytest.fixture
 def figure_texts(monkeypatch):
     """Every figure harv-jax saves during the test, checked as a reader sees it before it is written:
-    file name -> the texts drawn outside the figure (``figure_checks.texts_outside``; [] when all fit)."""
+    file name -> the texts drawn outside the figure (``figure_checks.texts_outside``; [] when all fit).
+    ``figure_texts.figures`` holds the figures themselves by file name."""
     from figure_checks import texts_outside
 
     from harv_jax import atomic
 
-    save, outside = atomic.save_figure, {}
+    class Outside(dict):
+        def __init__(self) -> None:
+            super().__init__()
+            self.figures: dict = {}
+
+    save, outside = atomic.save_figure, Outside()
 
     def checked(fig, path, **kw):
         outside[Path(path).name] = texts_outside(fig)
+        outside.figures[Path(path).name] = fig
         return save(fig, path, **kw)
 
     monkeypatch.setattr(atomic, "save_figure", checked)

@@ -27,14 +27,13 @@ def test_omega_settling_time():
 
 
 def test_compare_writes_tables_and_figures(monkeypatch, capsys, tmp_path, figure_texts):
-    outside = figure_texts
     out = tmp_path / "c"
     code, _, err = _run(
         monkeypatch, capsys, "--controller", "smc,hybrid", "--policy", "shipped:partial", "--duration", "11",
         "--spin-s", "0.5", "--out", str(out),
     )  # fmt: skip
     assert code == 0, err
-    assert len(outside) >= 3 and not any(outside.values()), outside
+    assert len(figure_texts) >= 3 and not any(figure_texts.values()), figure_texts
     for f in ("spin_trajectories.png", "fixed_trajectories.png", "spin_hybrid.png", "compare_metrics.md"):
         assert (out / f).stat().st_size > 0
     rows = list(csv.DictReader((out / "compare_metrics.csv").open()))

@@ -4,27 +4,8 @@ controllers readable side by side, every legend entry drawn."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
-from figure_checks import texts_outside
-
-from harv_jax import atomic
 
 CONTROLLERS = ("smc", "smc-brake", "smc-brake-zoom-soft", "rl", "hybrid")
-
-
-@pytest.fixture
-def figures(monkeypatch):
-    """Every figure a plot function saves, by full path, and (``path:outside``) what of it lies outside."""
-    seen: dict[str, object] = {}
-    save = atomic.save_figure
-
-    def check(fig, path, **kw):
-        seen[str(path)] = fig
-        seen[str(path) + ":outside"] = texts_outside(fig)
-        return save(fig, path, **kw)
-
-    monkeypatch.setattr(atomic, "save_figure", check)
-    return seen
 
 
 def _histories(n_runs: int = 40, n_t: int = 120) -> dict[str, np.ndarray]:
@@ -36,7 +17,7 @@ def _histories(n_runs: int = 40, n_t: int = 120) -> dict[str, np.ndarray]:
     }
 
 
-def test_bands_of_five_controllers_are_small_multiples_with_every_text_inside(tmp_path, figures):
+def test_bands_of_five_controllers_are_small_multiples_with_every_text_inside(tmp_path, figure_texts):
     from harv_jax.plots.mc import plot_mc_bands, plot_mc_bands_overlay
 
     h = _histories()
@@ -44,26 +25,26 @@ def test_bands_of_five_controllers_are_small_multiples_with_every_text_inside(tm
     ref = np.array([0.2, 0.0, 0.0])
     title = f"{', '.join(CONTROLLERS)}: Monte Carlo bands (N = 1000, alpha_d = 11.5 deg, h0 = 25,000 ft)"
     plot_mc_bands_overlay(t, h, ref, tmp_path / "all.png", title=title)
-    fig = figures[str(tmp_path / "all.png")]
-    assert figures[str(tmp_path / "all.png") + ":outside"] == []
+    fig = figure_texts.figures["all.png"]
+    assert figure_texts["all.png"] == []
     # one panel per controller and variable: no band is drawn over another's
     panels = [ax for ax in fig.axes if ax.collections]
     assert len(panels) == 3 * len(CONTROLLERS)
     assert all(len(ax.collections) == 2 for ax in panels)  # its own 5-95 % and 25-75 % bands only
     assert [ax.get_title() for ax in fig.axes[: len(CONTROLLERS)]] == list(CONTROLLERS)
     plot_mc_bands(t, h["hybrid"], ref, tmp_path / "one.png", title=f"smc-brake-zoom-soft: {title}")
-    assert figures[str(tmp_path / "one.png") + ":outside"] == []
+    assert figure_texts["one.png"] == []
 
 
-def test_terminal_errors_draw_what_their_labels_name_and_keep_texts_inside(tmp_path, figures):
+def test_terminal_errors_draw_what_their_labels_name_and_keep_texts_inside(tmp_path, figure_texts):
     from harv_jax.plots.mc import plot_terminal_errors
 
     rng = np.random.default_rng(1)
     errors = {c: rng.normal(0, 0.05 * (k + 1), (200, 3)) for k, c in enumerate(CONTROLLERS)}
     errors["rl"][:3] = 30.0  # overflow bars and their note
     plot_terminal_errors(errors, tmp_path / "t.png")
-    fig = figures[str(tmp_path / "t.png")]
-    assert figures[str(tmp_path / "t.png") + ":outside"] == []
+    fig = figure_texts.figures["t.png"]
+    assert figure_texts["t.png"] == []
     for ax in fig.axes:
         assert "dotted: +-0.5 deg" in ax.get_xlabel()
         dotted = [ln for ln in ax.get_lines() if ln.get_linestyle() == ":"]
@@ -72,7 +53,7 @@ def test_terminal_errors_draw_what_their_labels_name_and_keep_texts_inside(tmp_p
         assert lo < -0.5 and hi > 0.5  # the named lines are on the panel
 
 
-def test_training_curve_keeps_a_long_title_inside(tmp_path, figures):
+def test_training_curve_keeps_a_long_title_inside(tmp_path, figure_texts):
     from harv_jax.plots.training import plot_training_curve
 
     history = [
@@ -82,4 +63,4 @@ def test_training_curve_keeps_a_long_title_inside(tmp_path, figures):
     ]  # fmt: skip
     title = "harv-jax train --preset teacher --seeds 5 --steps 3000000 --out runs/teacher_41 (5 seeds) " * 2
     plot_training_curve(tmp_path / "curve.png", history, title)
-    assert figures[str(tmp_path / "curve.png") + ":outside"] == []
+    assert figure_texts["curve.png"] == []

@@ -142,7 +142,6 @@ def test_fly_spin(monkeypatch, capsys, tmp_path):
 
 
 def test_fly_hybrid_with_shipped_partial_policy(monkeypatch, capsys, tmp_path, figure_texts):
-    outside = figure_texts
     code, out, err = _run(
         monkeypatch, capsys, "--controller", "hybrid", "--policy", "shipped:partial", "--scenario", "random",
         "--duration", DURATION, "--out", str(tmp_path / "h"),
@@ -150,8 +149,8 @@ def test_fly_hybrid_with_shipped_partial_policy(monkeypatch, capsys, tmp_path, f
     assert code == 0, err
     data, header, doc = _check_outputs(tmp_path / "h", 50, "hybrid")
     assert (tmp_path / "h" / "hybrid.png").stat().st_size > 0
-    assert set(outside) == {"trajectory.png", "sliding.png", "hybrid.png"}
-    assert not any(outside.values()), outside
+    assert set(figure_texts) == {"trajectory.png", "sliding.png", "hybrid.png"}
+    assert not any(figure_texts.values()), figure_texts
     z = data[:, header.index("zeta")]
     assert np.all((z >= 0) & (z <= 1))
     assert doc["policy"] == "shipped:partial" and doc["zeta_schedule"] == "simplex"

@@ -61,17 +61,18 @@ def register(app: typer.Typer) -> None:
             controller_options,
             warn_loop_mismatch,
         )
-        from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
+        from harv_jax.control.registry import build_controller, parse_controllers
         from harv_jax.guards import check_seed
         from harv_jax.outdir import prepare_out_dir, read_paths
         from harv_jax.state_file import load_state_file
 
         names = parse_controllers(controller)
-        zeta = controller_options(names, policy, zeta).zeta  # refuses an option none of them reads
+        options = controller_options(names, policy, zeta)  # refuses an option none of them reads
+        zeta = options.zeta
         check_seed(seed)
         for name in names:
             check_fly_options(name, "sat", target_alpha, duration, spin_s)
-            build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
+            build_controller(name, options)
         warn_loop_mismatch(names, policy, zeta)
         fixed_state = None
         if state is not None:

@@ -155,20 +155,21 @@ def register(app: typer.Typer) -> None:
             controller_options,
             warn_loop_mismatch,
         )
-        from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
+        from harv_jax.control.registry import build_controller, parse_controllers
         from harv_jax.evaluation.envelope_study import envelope_study, write_envelope
         from harv_jax.guards import check_closed_loop_batch, check_seed
         from harv_jax.outdir import prepare_out_dir, read_paths
 
         names = parse_controllers(controller)
-        zeta = controller_options(names, policy, zeta).zeta  # refuses an option none of them reads
+        options = controller_options(names, policy, zeta)  # refuses an option none of them reads
+        zeta = options.zeta
         g = build_grid(grid, n, fixed)
         check_mc_options(g.n_runs, target_alpha, duration, chunk)
         check_seed(seed)
         n_steps = round(duration / DT_S)
         check_closed_loop_batch(g.n_runs, n_steps, n_steps, chunk, len(names), runs_flag="--n x --n =")
         for name in names:  # fail fast, before creating the output directory
-            build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
+            build_controller(name, options)
         warn_loop_mismatch(names, policy, zeta)
         out_dir = prepare_out_dir(out, force, read_paths(policy))
         study = envelope_study(

@@ -60,7 +60,7 @@ def register(app: typer.Typer) -> None:
         """Fly a controller closed loop: trajectory.csv, trajectory.png, sliding.png, metrics.json (and
         hybrid.png for the hybrid)."""
         from harv_jax.cli_options import check_fly_options, controller_options, warn_loop_mismatch
-        from harv_jax.control.registry import ControllerOptions, build_controller
+        from harv_jax.control.registry import build_controller
         from harv_jax.guards import check_seed
         from harv_jax.outdir import prepare_out_dir, read_paths
         from harv_jax.state_file import SCENARIOS, load_state_file
@@ -78,7 +78,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.evaluation.flight import write_flight
         from harv_jax.evaluation.summary import flight_settings
 
-        build_controller(controller, ControllerOptions(policy=policy, zeta=zeta, switching=switching))
+        build_controller(controller, opts)
         warn_loop_mismatch([controller], policy, zeta)
         out_dir = prepare_out_dir(out, force, read_paths(policy, scenario))
         res = fly_scenario(

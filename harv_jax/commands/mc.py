@@ -60,12 +60,13 @@ def register(app: typer.Typer) -> None:
             controller_options,
             warn_loop_mismatch,
         )
-        from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
+        from harv_jax.control.registry import build_controller, parse_controllers
         from harv_jax.guards import check_closed_loop_batch, check_seed
         from harv_jax.outdir import prepare_out_dir, read_paths
 
         names = parse_controllers(controller)
-        zeta = controller_options(names, policy, zeta).zeta  # refuses an option none of them reads
+        options = controller_options(names, policy, zeta)  # refuses an option none of them reads
+        zeta = options.zeta
         check_mc_options(runs, target_alpha, duration, chunk)
         check_seed(seed)
         check_closed_loop_batch(runs, round(duration / DT_S), 10, chunk, len(names))
@@ -73,7 +74,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.evaluation.mc_study import monte_carlo, write_monte_carlo
 
         for name in names:  # fail fast, before creating the output directory
-            build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
+            build_controller(name, options)
         warn_loop_mismatch(names, policy, zeta)
         out_dir = prepare_out_dir(out, force, read_paths(policy))
         study = monte_carlo(

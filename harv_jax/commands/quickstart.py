@@ -52,14 +52,15 @@ def register(app: typer.Typer) -> None:
             controller_options,
             warn_loop_mismatch,
         )
-        from harv_jax.control.registry import ControllerOptions, build_controller
+        from harv_jax.control.registry import build_controller
         from harv_jax.guards import check_closed_loop_batch, check_seed
         from harv_jax.numfmt import fmt_num
         from harv_jax.outdir import prepare_out_dir, read_paths
         from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
         names = list(QUICKSTART_CONTROLLERS)
-        zeta = controller_options(names, policy, zeta).zeta  # refuses an option none of them reads
+        options = controller_options(names, policy, zeta)  # refuses an option none of them reads
+        zeta = options.zeta
         check_mc_options(runs, ALPHA_TARGET_RAD, DURATION_S, CHUNK)
         check_seed(seed)
         check_closed_loop_batch(runs, round(DURATION_S / DT_S), 10, CHUNK, len(names))
@@ -69,7 +70,7 @@ def register(app: typer.Typer) -> None:
         from harv_jax.report import build_report
 
         for name in names:
-            build_controller(name, ControllerOptions(policy=policy, zeta=zeta))
+            build_controller(name, options)
         warn_loop_mismatch(names, policy, zeta)
         out_dir = prepare_out_dir(out, force, read_paths(policy))
         t0 = time.perf_counter()

@@ -59,14 +59,15 @@ def register(app: typer.Typer) -> None:
             controller_options,
             warn_loop_mismatch,
         )
-        from harv_jax.control.registry import ControllerOptions, build_controller, parse_controllers
+        from harv_jax.control.registry import build_controller, parse_controllers
         from harv_jax.errors import UsageError
         from harv_jax.evaluation.disturbance_spec import DISTURBANCE_NAMES
         from harv_jax.evaluation.robustness import levels_from_options
         from harv_jax.guards import check_closed_loop_batch, check_seed
 
         names = parse_controllers(controller)
-        zeta = controller_options(names, policy, zeta).zeta  # refuses an option none of them reads
+        options = controller_options(names, policy, zeta)  # refuses an option none of them reads
+        zeta = options.zeta
         check_mc_options(runs, ALPHA_TARGET_RAD, duration, chunk)
         check_seed(seed)
         swept = [p.strip() for p in disturbances.split(",") if p.strip()]
@@ -88,7 +89,6 @@ def register(app: typer.Typer) -> None:
                 raise UsageError(f"--{name}-levels {text!r} given but {name} is not in --disturbances")
         levels = levels_from_options(given, swept)
         check_closed_loop_batch(runs, round(duration / DT_S), 100, chunk, len(names))
-        options = ControllerOptions(policy=policy, zeta=zeta)
         ctrls = {name: build_controller(name, options) for name in names}  # fails before any folder exists
         warn_loop_mismatch(names, policy, zeta)
         from harv_jax.evaluation.robustness import margins_table, robustness_sweep
