@@ -89,8 +89,8 @@ def chunk_option():
 def controllers_help() -> str:
     """``--controller`` help (fixed text; the error for an unknown name lists the registered ones)."""
     return (
-        "Controllers, comma-separated: smc, smc-brake, smc-brake-v0, smc-brake-zoom, smc-brake-zoom-soft, "
-        "rl, hybrid or another name in harv_jax.control.registry; NAME+lpHZ feeds NAME its measurements "
+        "Controllers, comma-separated: smc, smc-brake, smc-brake-zoom, rl, hybrid"
+        " or another name in harv_jax.control.registry; NAME+lpHZ feeds NAME its measurements "
         "through a 2nd-order low-pass at HZ (e.g. smc+lp2), NAME+obsHZ the estimate of a model-based "
         "observer of HZ bandwidth (e.g. smc+obs0.1), NAME+esoHZ that of the extended-state observer, which "
         "also estimates the rate bias the model misses (e.g. rl+eso0.075)."

@@ -93,8 +93,6 @@ BAD_PRESETS: dict[str, tuple[str | bytes | None, str]] = {
     "env_string": ('[env]\ndt_s = "0.01"\n', "env.dt_s = '0.01'"),
     "env_float_for_int": ("[env]\nepisode_steps = 100.5\n", "env.episode_steps = 100.5"),
     "env_bool_for_int": ("[env]\nmax_delay_steps = true\n", "env.max_delay_steps = True"),
-    "env_v0_weight": ("[env]\nv0_fast_weight = 0.0\n", "env.v0_fast_weight = 0.0"),
-    "env_v0_from": ("[env]\nv0_fast_from_fps = nan\n", "env.v0_fast_from_fps = nan"),
     "env_int_for_bool": ("[env]\ndomain_randomization = 1\n", "env.domain_randomization = 1"),
     "env_list": ("[env]\nthrottle = [0.2]\n", "env.throttle = [0.2]"),
     "env_dt_zero": ("[env]\ndt_s = 0.0\n", "env.dt_s = 0.0"),
@@ -237,7 +235,7 @@ BAD_RESUME_DIRS: dict[str, tuple[dict[str, str], str]] = {
     "bad_ppo": ({"config.json": json.dumps({"ppo": {"lr": -1.0}})}, "--lr -1.0"),
     "bad_env": ({"config.json": json.dumps({"ppo": {}, "env": {"episode_steps": 0}})}, "episode_steps = 0"),
     "bad_loop": ({"config.json": json.dumps({"ppo": {}, "env": {"loop": "hybrid:x"}})}, "'hybrid:x'"),
-    "env_list": ({"config.json": json.dumps({"ppo": {}, "env": [1]})}, "are not a table"),
+    "env_list": ({"config.json": json.dumps({"ppo": {}, "env": [1]})}, "a table of settings, got [1]"),
     "damaged": ({"checkpoints/ckpt_000001.msgpack": "garbage"}, "none of the 1 checkpoint(s)"),
 }  # fmt: skip
 
@@ -297,7 +295,7 @@ CASES: list[tuple[list[str], str]] = [
     (["fly", "--seed", "2147483648"], "--seed 2147483648"),
     (["fly", "--seed", "nan"], "'nan' is not a whole number"),
     (["fly", "--seed", "1.5"], "'1.5' is not a whole number"),
-    (["fly", "--controller", "rl", "--policy", "POL_sizes"], "this aircraft's controller needs"),
+    (["fly", "--controller", "rl", "--policy", "POL_sizes"], "allowed: 11 observations -> 3 actions"),
     (["fly", "--controller", "rl", "--policy", "missing.npz"], "does not exist"),
     (["fly", "--controller", "rl", "--policy", "shipped:bogus"], "bogus"),
     (["fly", "--controller", "rl", "--policy", "POL_good@3"], "@SEED is for checkpoints"),

@@ -18,13 +18,20 @@ from test_train import CFG, TOY_PARAMS, ToyEnv
 from harv_jax import policy as policy_api
 from harv_jax.errors import UsageError
 from harv_jax.optimal.demos import FORMAT_NAME, FORMAT_VERSION, make_demos, save_demos
-from harv_jax.ppo.demos import sample_minibatches
-from harv_jax.ppo.losses import DemoBatch, PPOBatch, behaviour_cloning, ppo_loss
+from harv_jax.ppo.loss_terms import (
+    BehaviourCloning,
+    DemoBatch,
+    behaviour_cloning,
+    sample_minibatches,
+    terms_from_config,
+)
+from harv_jax.ppo.losses import LossWeights, PPOBatch, PPOLossSettings, ppo_loss
 from harv_jax.ppo.networks import gaussian_log_prob, make_ppo_networks
 from harv_jax.ppo.runner import run_training
 from harv_jax.ppo.train import make_train
 from harv_jax.training.demos import load_run_demos
 from harv_jax.training.outputs import export_seed_policies
+from harv_jax.training.spec import TrainSpec
 from harv_jax.training.start import write_run_record
 
 SMOKE = (Path(__file__).resolve().parents[1] / "harv_jax/training/presets/smoke.toml").read_text()
@@ -78,8 +85,21 @@ def _batch(nets, params, teacher, n=4):
         zeros,
         jnp.arange(n, dtype=jnp.float32),
         zeros,
-        teacher,
+        (teacher,),
     )
+
+
+NO_VALUE = PPOLossSettings(vf_coef=0.0)
+
+
+def _bc(params, batch, nets, label_key, demo):
+    """PPO loss (no value term) plus behaviour cloning with weight 2 toward the batch's labels and/or a
+    minibatch sample ``demo``."""
+    term = BehaviourCloning(
+        2.0, 2.0, label_key=label_key, demos=None if demo is None else (demo.obs, demo.action)
+    )
+    batch = batch._replace(term_samples=(demo,))
+    return ppo_loss(params, batch, nets, NO_VALUE, (term,), LossWeights(None, (jnp.asarray(2.0),)))
 
 
 def test_bc_on_demos_in_the_ppo_loss_equals_the_formula_and_adds_to_the_teachers():
@@ -93,14 +113,14 @@ def test_bc_on_demos_in_the_ppo_loss_equals_the_formula_and_adds_to_the_teachers
     y = np.asarray(demo.action, np.float64)
     want = np.mean(np.sum((np.clip(mu, -1, 1) - y) ** 2 + 0.01 * (mu - y) ** 2, axis=-1))
     plain = _batch(nets, params, None)
-    total_0, _ = ppo_loss(params, plain, nets, vf_coef=0.0)
-    total, m = ppo_loss(params, plain, nets, vf_coef=0.0, bc_coef=2.0, demo=demo)
+    total_0, _ = ppo_loss(params, plain._replace(term_data=()), nets, NO_VALUE)
+    total, m = _bc(params, plain, nets, None, demo)
     np.testing.assert_allclose(float(m["bc_demo_loss"]), want, rtol=1e-5)
     np.testing.assert_allclose(float(total - total_0), 2.0 * want, rtol=1e-4, atol=1e-6)
     assert "bc_loss" not in m  # no teacher labels: the demo term alone
     teacher = jnp.full((4, 3), 0.3, jnp.float32)
-    both, mb = ppo_loss(params, _batch(nets, params, teacher), nets, vf_coef=0.0, bc_coef=2.0, demo=demo)
-    only_t, mt = ppo_loss(params, _batch(nets, params, teacher), nets, vf_coef=0.0, bc_coef=2.0)
+    both, mb = _bc(params, _batch(nets, params, teacher), nets, "teacher_action", demo)
+    only_t, mt = _bc(params, _batch(nets, params, teacher), nets, "teacher_action", None)
     assert float(mb["bc_loss"]) == float(mt["bc_loss"])
     np.testing.assert_allclose(float(both - only_t), 2.0 * want, rtol=1e-4, atol=1e-6)
 
@@ -138,7 +158,7 @@ def test_training_from_demos_alone_clones_them_is_reproducible_and_recorded(tmp_
         bc_coef_end=1.0,
     )
     demos = _toy_demos()
-    trainer = make_train(ToyEnv(), cfg, TOY_PARAMS, demos=demos)
+    trainer = make_train(ToyEnv(), cfg, TOY_PARAMS, terms=terms_from_config(cfg, demos=demos))
     runs = [
         run_training(jax.random.key(cfg.seed), ToyEnv(), TOY_PARAMS, cfg, trainer=trainer) for _ in range(2)
     ]
@@ -148,11 +168,12 @@ def test_training_from_demos_alone_clones_them_is_reproducible_and_recorded(tmp_
     first, last = (np.asarray(r["bc_demo_loss"]) for r in (runs[0].history[0], runs[0].history[-1]))
     assert first.shape == (cfg.num_seeds,) and np.all(last < first)
     with pytest.raises(ValueError, match="the env has 4 and 3"):
-        make_train(ToyEnv(), cfg, TOY_PARAMS, demos=(demos[0][:, :3], demos[1]))
+        make_train(ToyEnv(), cfg, TOY_PARAMS, terms=terms_from_config(cfg, demos=(demos[0][:, :3], demos[1])))
     record = {"path": "/d.npz", "sha256": "ab" * 32, "runs": 2, "runs_in_file": 3, "pairs": 256}
     (pol,) = export_seed_policies(tmp_path, runs[0].state, trainer, cfg.replace(num_seeds=1), 1, demos=record)
     assert policy_api.load(tmp_path / "policy_seed0.npz").meta["demos"] == record == pol.meta["demos"]
-    write_run_record(tmp_path, "smoke", cfg.replace(demos="/d.npz"), {}, None, demos=_Recorded(record))
+    spec = TrainSpec.from_settings("smoke", cfg.replace(demos="/d.npz"), {})
+    write_run_record(tmp_path, spec, None, demos=_Recorded(record))
     config = json.loads((tmp_path / "config.json").read_text())
     assert config["demos"] == record and config["ppo"]["demos"] == "/d.npz"
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-CONTROLLERS = ("smc", "smc-brake", "smc-brake-zoom-soft", "rl", "hybrid")
+CONTROLLERS = ("smc", "smc-brake", "smc-brake-zoom", "rl", "hybrid")
 
 
 def _histories(n_runs: int = 40, n_t: int = 120) -> dict[str, np.ndarray]:
@@ -32,7 +32,7 @@ def test_bands_of_five_controllers_are_small_multiples_with_every_text_inside(tm
     assert len(panels) == 3 * len(CONTROLLERS)
     assert all(len(ax.collections) == 2 for ax in panels)  # its own 5-95 % and 25-75 % bands only
     assert [ax.get_title() for ax in fig.axes[: len(CONTROLLERS)]] == list(CONTROLLERS)
-    plot_mc_bands(t, h["hybrid"], ref, tmp_path / "one.png", title=f"smc-brake-zoom-soft: {title}")
+    plot_mc_bands(t, h["hybrid"], ref, tmp_path / "one.png", title=f"smc-brake-zoom: {title}")
     assert figure_texts["one.png"] == []
 
 

@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from harv_jax.ppo.losses import PPOBatch, ppo_loss
+from harv_jax.ppo.losses import PPOBatch, PPOLossSettings, ppo_loss
 from harv_jax.ppo.networks import gaussian_entropy, gaussian_log_prob, make_ppo_networks
 
 T, B, OBS, ACT = 5, 6, 11, 3
@@ -100,8 +100,8 @@ def test_loss_and_grads_match_brax(clip_value_eps, ent_coef):
         flat = lambda x: tm(x).reshape((T * B,) + x.shape[2:])  # noqa: E731
         batch = PPOBatch(flat(obs), flat(raw_action), flat(behaviour), flat(old_value),
                          adv.reshape(-1), vs.reshape(-1))  # fmt: skip
-        return ppo_loss(p, batch, nets, clip_eps=clip_eps, vf_coef=vf_coef, ent_coef=ent_coef,
-                        clip_value_eps=clip_value_eps, normalize_advantage=True)  # fmt: skip
+        settings = PPOLossSettings(clip_eps, vf_coef, ent_coef, clip_value_eps, normalize_advantage=True)
+        return ppo_loss(p, batch, nets, settings)
 
     (l_b, m_b), g_b = jax.jit(jax.value_and_grad(brax_loss, has_aux=True))(params)
     (l_o, m_o), g_o = jax.jit(jax.value_and_grad(our_loss, has_aux=True))(params)

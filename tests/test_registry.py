@@ -99,3 +99,25 @@ def test_compare_flies_the_toy(toy, monkeypatch, capsys, tmp_path):
     doc = json.loads((out / "compare.json").read_text())
     assert [(r["scenario"], r["controller"]) for r in doc["rows"]] == [("spin", "toy"), ("fixed", "toy")]
     assert doc["policy"] is None and doc["certificates"] == {}
+
+
+def test_a_policy_of_another_size_is_refused_in_one_line(tmp_path):
+    """A policy that does not map the 11 observations to 3 actions: one line naming its sizes, for rl and
+    hybrid alike."""
+    import jax
+
+    from harv_jax.policy import export_npz, make_policy
+    from harv_jax.ppo import normalize
+    from harv_jax.ppo.networks import make_ppo_networks
+
+    networks = make_ppo_networks(13, 3, (8,))
+    pol = make_policy(
+        networks.init(jax.random.key(0)), normalize.init_stats(13), networks, meta={"source": "test"}
+    )
+    path = export_npz(tmp_path / "thirteen.npz", pol)
+    for name in ("rl", "hybrid"):
+        with pytest.raises(UsageError) as e:
+            registry.build_controller(name, registry.ControllerOptions(policy=str(path)))
+        msg = str(e.value)
+        assert "13 observations to 3 actions" in msg and "allowed: 11 observations -> 3 actions" in msg
+        assert "\n" not in msg

@@ -63,7 +63,7 @@ def test_paper_reward_bit_for_bit():
     )
     ref = jax.jit(jax.vmap(lambda *z: _paper_total(*z, W)))(x, target, a, pot, term)
     assert np.asarray(ours).tobytes() == np.asarray(ref).tobytes()
-    for name in ("dense_alpha", "dense_beta", "dense_mu", "recovered", "action_rate", "speed"):
+    for name in ("dense_alpha", "dense_beta", "dense_mu", "recovered", "action_rate"):
         terms = jax.vmap(lambda *z: reward.reward_terms(*z[:5], W, z[5])[0])(x, target, a, pot, term, a_prev)
         assert np.all(np.asarray(getattr(terms, name)) == 0.0), name
 
@@ -140,11 +140,11 @@ def test_total_adds_our_terms():
     x, target, a, pot, term, a_prev = _random_steps(512, seed=1)
     w = W.replace(bonus_shape=jnp.asarray(1.0), bonus_width_rad=jnp.full((3,), 0.0873),
                   w_track=jnp.asarray([1.0, 2.0, 3.0]), recovered_bonus=jnp.asarray(5.0),
-                  action_rate_weight=jnp.asarray(0.3), speed_weight=jnp.asarray(2.0),
+                  action_rate_weight=jnp.asarray(0.3),
                   alpha_v_lo_fps=jnp.asarray(450.0), alpha_v_hi_fps=jnp.asarray(600.0))  # fmt: skip
     t = jax.vmap(lambda *z: reward.reward_terms(*z[:5], w, z[5])[0])(x, target, a, pot, term, a_prev)
     perf = (t.raw + t.bonus_alpha + t.bonus_beta + t.bonus_mu + t.action + t.dense_alpha + t.dense_beta
-            + t.dense_mu + t.recovered + t.action_rate + t.speed)  # fmt: skip
+            + t.dense_mu + t.recovered + t.action_rate)  # fmt: skip
     expect = np.where(np.asarray(term), np.asarray(t.terminal), np.asarray(perf)) + np.asarray(t.shaping)
     np.testing.assert_allclose(t.total, expect, rtol=1e-5, atol=1e-4)
 
@@ -158,10 +158,9 @@ def test_total_adds_our_terms():
         ({"reward": {"recovered_bonus": float("nan")}}, "reward.recovered_bonus"),
         ({"reward": {"bogus": 1}}, "unknown [reward] setting 'bogus'"),
         (
-            {"reward": {"speed_scale_fps": 0.0}},
-            "reward.speed_scale_fps = 0.0 is outside the allowed range [1, 10000]",
+            {"reward": {"alpha_brake_zoom_slope_fps_per_rad": -1.0}},
+            "reward.alpha_brake_zoom_slope_fps_per_rad = -1.0 is outside the allowed range [0, 10000]",
         ),
-        ({"reward": {"speed_weight": -1.0}}, "reward.speed_weight = -1.0 is outside"),
         ({"reward": {"alpha_v_hi_fps": 2e6}}, "reward.alpha_v_hi_fps = 2000000.0 is outside"),
         ({"spin": {"reset_prob": 1.5}}, "spin.reset_prob = 1.5 is outside the allowed range [0, 1]"),
         ({"spin": {"bank_size": 0}}, "spin.bank_size = 0 is outside"),
@@ -213,21 +212,11 @@ def test_alpha_weight_by_hand():
     assert float(reward.alpha_weight(jnp.asarray(1500.0), W)) == 1.0  # the paper's settings: no weighting
 
 
-def test_speed_penalty_by_hand():
-    # w = 4, ref 450, scale 500 ft/s: V = 400 -> 0; 700 -> -4 * 250/500 = -2; 1200 -> -4 (clipped at 1)
-    w = W.replace(speed_weight=jnp.asarray(4.0), speed_ref_fps=jnp.asarray(450.0),
-                  speed_scale_fps=jnp.asarray(500.0))  # fmt: skip
-    got = [float(reward.speed_penalty(jnp.asarray(v), w)) for v in (400.0, 700.0, 1200.0)]
-    np.testing.assert_allclose(got, [0.0, -2.0, -4.0], rtol=1e-6)
-
-
 def test_alpha_terms_weighted_out_when_fast():
-    """At V = 700 ft/s with alpha_v_hi 600 the alpha bonus and dense term are 0; at 300 ft/s they are paid;
-    the speed term of a full step is the hand value."""
+    """At V = 700 ft/s with alpha_v_hi 600 the alpha bonus and dense term are 0; at 300 ft/s they are paid."""
     w = W.replace(bonus_shape=jnp.asarray(1.0), bonus_width_rad=jnp.full((3,), 0.0873),
                   w_track=jnp.asarray([4.0, 3.0, 3.0]), alpha_v_lo_fps=jnp.asarray(450.0),
-                  alpha_v_hi_fps=jnp.asarray(600.0), speed_weight=jnp.asarray(4.0),
-                  speed_ref_fps=jnp.asarray(450.0), speed_scale_fps=jnp.asarray(500.0))  # fmt: skip
+                  alpha_v_hi_fps=jnp.asarray(600.0))  # fmt: skip
     target = jnp.asarray([0.349, 0.0, 0.0])
     a = jnp.zeros(3)
     for v, paid in ((700.0, False), (300.0, True)):
@@ -236,7 +225,6 @@ def test_alpha_terms_weighted_out_when_fast():
         # dense_alpha = -4 * 0.25/0.5 = -2; bonus_alpha = 5 exp(-(0.25/0.0873)^2) = 5 * 2.74e-4 = 1.37e-3
         np.testing.assert_allclose(float(t.dense_alpha), -2.0 if paid else 0.0, rtol=1e-5, atol=1e-7)
         np.testing.assert_allclose(float(t.bonus_alpha), 1.37e-3 if paid else 0.0, rtol=1e-2, atol=1e-7)
-        np.testing.assert_allclose(float(t.speed), -4.0 * 250.0 / 500.0 if v == 700.0 else 0.0, rtol=1e-6)
 
 
 def test_alpha_brake_target_by_hand():

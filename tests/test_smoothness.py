@@ -14,7 +14,8 @@ from test_train import CFG, TOY_PARAMS, ToyEnv
 
 from harv_jax.errors import UsageError
 from harv_jax.ppo import config as ppo_config
-from harv_jax.ppo.losses import PPOBatch, action_change, ppo_loss
+from harv_jax.ppo.loss_terms import SpatialSmoothness, TemporalSmoothness, action_change, terms_from_config
+from harv_jax.ppo.losses import LossWeights, PPOBatch, PPOLossSettings, ppo_loss
 from harv_jax.ppo.networks import gaussian_log_prob, make_ppo_networks
 from harv_jax.ppo.train import make_train, seed_keys
 
@@ -33,8 +34,18 @@ def _case(seed: int = 0):
     lp = gaussian_log_prob(mean, log_std, mean)
     zeros = jnp.zeros((N,), jnp.float32)
     adv = jnp.arange(N, dtype=jnp.float32)
-    batch = PPOBatch(obs, mean, lp, zeros, adv, zeros, None, next_obs, mask, perturbed)
+    batch = PPOBatch(obs, mean, lp, zeros, adv, zeros, ((next_obs, mask), perturbed))
     return nets, params, batch
+
+
+TERMS = (TemporalSmoothness(1.0), SpatialSmoothness(1.0, 0.05))
+
+
+def _loss(params, batch, nets, temporal: float, spatial: float, vf_coef: float = 0.0):
+    """The PPO loss plus both smoothness terms with these weights (the batch carries both terms' data)."""
+    return ppo_loss(
+        params, batch, nets, PPOLossSettings(vf_coef=vf_coef), TERMS, LossWeights(None, (temporal, spatial))
+    )
 
 
 def _l1(a, b, w=None):
@@ -56,24 +67,26 @@ def test_action_change_is_the_clipped_l1_distance():
 def test_smoothness_terms_equal_the_hand_worked_values():
     nets, params, batch = _case()
     mu = nets.policy(params, batch.obs)[0]
-    mu_next = nets.policy(params, batch.next_obs)[0]
-    mu_pert = nets.policy(params, batch.perturbed_obs)[0]
-    temporal = _l1(mu, mu_next, np.asarray(batch.next_mask))
+    (next_obs, next_mask), perturbed = batch.term_data
+    mu_next = nets.policy(params, next_obs)[0]
+    mu_pert = nets.policy(params, perturbed)[0]
+    temporal = _l1(mu, mu_next, np.asarray(next_mask))
     spatial = _l1(mu, mu_pert)
-    total, m = ppo_loss(params, batch, nets, vf_coef=0.0, smooth_temporal_coef=0.7, smooth_spatial_coef=0.3)
+    total, m = _loss(params, batch, nets, 0.7, 0.3)
     np.testing.assert_allclose(float(m["smooth_temporal_loss"]), temporal, rtol=1e-5)
     np.testing.assert_allclose(float(m["smooth_spatial_loss"]), spatial, rtol=1e-5)
-    plain = batch._replace(next_obs=None, next_mask=None, perturbed_obs=None)
-    total_plain, m_plain = ppo_loss(params, plain, nets, vf_coef=0.0, smooth_temporal_coef=0.7)
+    assert (float(m["smooth_temporal_coef"]), float(m["smooth_spatial_coef"])) == pytest.approx((0.7, 0.3))
+    total_plain, m_plain = ppo_loss(params, batch._replace(term_data=()), nets, PPOLossSettings(vf_coef=0.0))
     assert "smooth_temporal_loss" not in m_plain and "smooth_spatial_loss" not in m_plain
     np.testing.assert_allclose(float(total - total_plain), 0.7 * temporal + 0.3 * spatial, rtol=1e-4)
 
 
 def test_the_temporal_term_ignores_the_step_that_ends_an_episode():
     nets, params, batch = _case(1)
-    far = batch.next_obs.at[2].add(100.0).at[5].add(-100.0)  # rows 2 and 5 are masked
-    _, m = ppo_loss(params, batch, nets, smooth_temporal_coef=1.0)
-    _, m_far = ppo_loss(params, batch._replace(next_obs=far), nets, smooth_temporal_coef=1.0)
+    (next_obs, mask), perturbed = batch.term_data
+    far = next_obs.at[2].add(100.0).at[5].add(-100.0)  # rows 2 and 5 are masked
+    _, m = _loss(params, batch, nets, 1.0, 0.0, vf_coef=0.5)
+    _, m_far = _loss(params, batch._replace(term_data=((far, mask), perturbed)), nets, 1.0, 0.0, vf_coef=0.5)
     np.testing.assert_allclose(
         float(m_far["smooth_temporal_loss"]), float(m["smooth_temporal_loss"]), rtol=1e-6
     )
@@ -85,7 +98,7 @@ def test_descending_the_terms_brings_the_actions_together():
     state = opt.init(params)
 
     def smooth_only(p):
-        _, m = ppo_loss(p, batch, nets, vf_coef=0.0, smooth_temporal_coef=1.0, smooth_spatial_coef=1.0)
+        _, m = _loss(p, batch, nets, 1.0, 1.0)
         return m["smooth_temporal_loss"] + m["smooth_spatial_loss"]
 
     @jax.jit
@@ -116,7 +129,7 @@ def test_settings_are_checked_and_recorded_only_when_on():
 
 
 def _one_period(cfg):
-    trainer = make_train(ToyEnv(), cfg, TOY_PARAMS)
+    trainer = make_train(ToyEnv(), cfg, TOY_PARAMS, terms=terms_from_config(cfg))
     state = trainer.init(seed_keys(jax.random.key(3), cfg.num_seeds), TOY_PARAMS)
     return trainer.period(state, TOY_PARAMS)
 
@@ -127,6 +140,7 @@ def test_trainer_without_the_terms_is_unchanged_and_with_them_reports_them():
     off_state, _ = _one_period(dataclasses.replace(CFG, smooth_spatial_std=0.5))
     jax.tree.map(np.testing.assert_array_equal, base_state.params, off_state.params)
     assert "smooth_temporal_loss" not in base_metrics
+    assert terms_from_config(CFG) == ()
     on_state, on_metrics = _one_period(CFG.replace(smooth_temporal_coef=0.5, smooth_spatial_coef=0.5))
     for k in ("smooth_temporal_loss", "smooth_spatial_loss"):
         assert np.all(np.isfinite(on_metrics[k])) and np.all(on_metrics[k] > 0), k

@@ -15,11 +15,12 @@ from test_train import CFG, TOY_PARAMS, ToyEnv
 from harv_jax.control.registry import build_controller
 from harv_jax.errors import UsageError
 from harv_jax.evaluation.seed_stats import iqm, iqm_ci, seed_table
-from harv_jax.ppo.losses import PPOBatch, ppo_loss
+from harv_jax.ppo.loss_terms import BehaviourCloning
+from harv_jax.ppo.losses import LossWeights, PPOBatch, PPOLossSettings, ppo_loss
 from harv_jax.ppo.networks import make_ppo_networks
 from harv_jax.ppo.train import make_train
 from harv_jax.task.spaces import command_to_action
-from harv_jax.training.environment import make_harv_env, teacher_model, teacher_name
+from harv_jax.training.environment import make_harv_env
 
 SMALL_ENV = {"episode_steps": 50, "domain_randomization": False}
 
@@ -32,7 +33,18 @@ def _batch(nets, params, teacher, n=4):
 
     lp = gaussian_log_prob(mean, log_std, raw)
     zeros = jnp.zeros((n,), jnp.float32)
-    return obs, mean, PPOBatch(obs, raw, lp, zeros, jnp.arange(n, dtype=jnp.float32), zeros, teacher)
+    return obs, mean, PPOBatch(obs, raw, lp, zeros, jnp.arange(n, dtype=jnp.float32), zeros, (teacher,))
+
+
+NO_VALUE = PPOLossSettings(vf_coef=0.0)
+BC = (BehaviourCloning(1.0, 1.0, label_key="teacher_action"),)
+
+
+def _loss(params, batch, nets, coef: float, actor: float | None = None):
+    """The PPO loss without its value term, plus behaviour cloning with weight ``coef`` (actor factor
+    ``actor``)."""
+    actor_w = None if actor is None else jnp.asarray(actor)
+    return ppo_loss(params, batch, nets, NO_VALUE, BC, LossWeights(actor_w, (jnp.asarray(coef),)))
 
 
 def test_bc_term_equals_the_hand_worked_value():
@@ -43,13 +55,15 @@ def test_bc_term_equals_the_hand_worked_value():
     mu = np.asarray(mean, np.float64)
     y = np.asarray(teacher, np.float64)
     bc = np.mean(np.sum((np.clip(mu, -1, 1) - y) ** 2 + 0.01 * (mu - y) ** 2, axis=-1))
-    _, m = ppo_loss(params, batch, nets, vf_coef=0.0, bc_coef=2.0)
+    total_bc, m = _loss(params, batch, nets, 2.0)
     np.testing.assert_allclose(float(m["bc_loss"]), bc, rtol=1e-5)
-    total_bc, _ = ppo_loss(params, batch, nets, vf_coef=0.0, bc_coef=2.0)
-    total_0, _ = ppo_loss(params, batch, nets, vf_coef=0.0, bc_coef=0.0)
+    assert float(m["bc_coef"]) == 2.0
+    total_0, _ = _loss(params, batch, nets, 0.0)
     np.testing.assert_allclose(float(total_bc - total_0), 2.0 * bc, rtol=1e-4, atol=1e-6)
-    # pg_on = 0: only the BC term (the value term is off here) is left
-    total_pg0, _ = ppo_loss(params, batch, nets, vf_coef=0.0, bc_coef=2.0, pg_on=0.0)
+    plain, _ = ppo_loss(params, batch._replace(term_data=()), nets, NO_VALUE)
+    assert float(total_0) == float(plain)  # weight 0: the plain PPO loss
+    # actor factor 0: only the BC term (the value term is off here) is left
+    total_pg0, _ = _loss(params, batch, nets, 2.0, actor=0.0)
     np.testing.assert_allclose(float(total_pg0), 2.0 * bc, rtol=1e-5)
 
 
@@ -58,19 +72,18 @@ def test_bc_gradient_pulls_the_mean_toward_the_teacher():
     params = nets.init(jax.random.key(2))
     teacher = jnp.full((4, 3), 0.3, jnp.float32)
     obs, mean, batch = _batch(nets, params, teacher)
-    grads = jax.grad(lambda p: ppo_loss(p, batch, nets, vf_coef=0.0, bc_coef=1.0, pg_on=0.0)[0])(params)
+    grads = jax.grad(lambda p: _loss(p, batch, nets, 1.0, actor=0.0)[0])(params)
     stepped = jax.tree.map(lambda p, g: p - 0.05 * g, params, grads)
     after, _ = nets.policy(stepped, obs)
     assert float(jnp.mean((after - teacher) ** 2)) < float(jnp.mean((mean - teacher) ** 2))
 
 
-def test_without_a_teacher_the_loss_is_the_plain_ppo_loss_bit_for_bit():
-    nets = make_ppo_networks(5, 3, (8,), -0.5)
-    params = nets.init(jax.random.key(3))
-    _, _, batch = _batch(nets, params, None)
-    a, _ = ppo_loss(params, batch, nets)
-    b, _ = ppo_loss(params, batch, nets, bc_coef=5.0)  # ignored: no teacher actions
-    assert float(a) == float(b)
+def test_without_loss_terms_the_trainer_compiles_the_plain_ppo_loss():
+    """No term: the loss is ``actor + value`` with no factor, whatever the config's unused settings."""
+    from harv_jax.ppo.loss_terms import terms_from_config
+
+    assert terms_from_config(CFG) == ()
+    assert terms_from_config(dataclasses.replace(CFG, bc_coef=0.0, bc_coef_end=0.0)) == ()
 
 
 def test_teacher_env_labels_each_step_with_the_teachers_normalized_command():
@@ -119,29 +132,52 @@ def test_a_nominal_teacher_labels_with_the_nominal_aircraft():
     assert np.any(np.abs(label_nominal - label_episode) > 1e-4)
 
 
+def _spec(env: dict, **ppo):
+    from harv_jax.ppo.config import PPOConfig
+    from harv_jax.training.spec import TrainSpec
+
+    return TrainSpec.from_settings("test", PPOConfig(**ppo), env)
+
+
 def test_teacher_model_is_checked():
-    assert teacher_model({"teacher": "smc"}) == "episode"
-    assert teacher_model({"teacher": "smc", "teacher_model": "nominal"}) == "nominal"
+    assert _spec({"teacher": "smc"}).teacher_model == "episode"
+    assert _spec({"teacher": "smc", "teacher_model": "nominal"}).teacher_model == "nominal"
     with pytest.raises(UsageError, match="teacher_model 'plant'; allowed: episode, nominal"):
-        teacher_model({"teacher": "smc", "teacher_model": "plant"})
+        _spec({"teacher": "smc", "teacher_model": "plant"})
     with pytest.raises(UsageError, match="given without a teacher"):
-        teacher_model({"teacher_model": "nominal"})
+        _spec({"teacher_model": "nominal"})
 
 
 def test_teacher_name_is_checked():
-    assert teacher_name({"teacher": "smc-brake"}) == "smc-brake"
-    assert teacher_name({}) is None
+    assert _spec({"teacher": "smc-brake"}).teacher == "smc-brake"
+    assert _spec({}).teacher is None
     for bad in ("rl", "hybrid", "nope", 3):
         with pytest.raises(UsageError, match="is not a controller that can teach; allowed: .*smc"):
-            teacher_name({"teacher": bad})
+            _spec({"teacher": bad})
     with pytest.raises(UsageError, match="cannot be combined with --in-loop"):
-        teacher_name({"teacher": "smc", "loop": "hybrid:gated"})
+        _spec({"teacher": "smc", "loop": "hybrid:gated"})
+
+
+def test_bc_and_demos_are_checked_once_in_the_spec():
+    with pytest.raises(UsageError, match="clone a teacher, and this run has none"):
+        _spec({}, bc_coef=1.0)
+    with pytest.raises(UsageError, match="are cloned with weight bc_coef; set bc_coef > 0"):
+        _spec({}, demos="/d.npz")
+    spec = _spec({"teacher": "smc", "episode_steps": 50}, bc_coef=1.0)
+    assert spec.behaviour_cloning and spec.env_settings() == {"episode_steps": 50, "teacher": "smc"}
+    assert _spec(spec.env_settings(), bc_coef=1.0) == spec  # the recorded settings give the spec back
 
 
 def test_bc_needs_an_env_with_teacher_labels():
+    from harv_jax.ppo.loss_terms import terms_from_config
+
     cfg = dataclasses.replace(CFG, bc_coef=1.0)
-    with pytest.raises(ValueError, match="teacher_action"):
-        make_train(ToyEnv(), cfg, TOY_PARAMS)
+    with pytest.raises(ValueError, match="needs an env that writes a teacher's action labels, or demos"):
+        terms_from_config(cfg)
+    with pytest.raises(
+        ValueError, match="reads the env's info\\['teacher_action'\\], which this env does not"
+    ):
+        make_train(ToyEnv(), cfg, TOY_PARAMS, terms=terms_from_config(cfg, "teacher_action"))
 
 
 def test_iqm_and_its_bootstrap_interval():

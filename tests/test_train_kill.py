@@ -103,7 +103,7 @@ def test_resume_plan_messages(full_run, tmp_path):
         (run / "checkpoints" / f.name).write_bytes(f.read_bytes())
     (run / "checkpoints" / files[-1].name).write_bytes(b"\x00" * 10)
     plan = resume_plan(run)
-    assert plan.from_checkpoint and plan.period == 3 and plan.cfg == CFG
+    assert plan.from_checkpoint and plan.period == 3 and plan.spec.ppo == CFG
     assert plan.messages[0].startswith(f"skipping checkpoint {files[-1].name}: ")
     steps = 3 * ppo_config.steps_per_period(CFG)
     assert f"resuming from period 3 (env steps {steps:,})" in plan.messages[-1]
@@ -112,7 +112,7 @@ def test_resume_plan_messages(full_run, tmp_path):
     fresh.mkdir()
     (fresh / "config.json").write_text(json.dumps({"preset": "x", "ppo": ppo_config.to_dict(CFG), "env": {}}))
     plan = resume_plan(fresh)
-    assert not plan.from_checkpoint and plan.period == 0 and plan.cfg == CFG
+    assert not plan.from_checkpoint and plan.period == 0 and plan.spec.ppo == CFG
     assert "restarting it from period 0" in plan.messages[0]
     (fresh / "config.json").write_text("{not json")
     with pytest.raises(UsageError, match="config.json' is unreadable .*--force"):

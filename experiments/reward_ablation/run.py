@@ -186,13 +186,14 @@ def train_in_process(preset: Path, seeds: int, seed: int, run_dir: Path) -> None
     from harv_jax.training.environment import make_harv_env
     from harv_jax.training.eval_hook import make_eval_hook
     from harv_jax.training.outputs import export_policies, write_metrics_csv
-    from harv_jax.training.presets import build_config
+    from harv_jax.training.presets import load_spec
 
-    cfg, env_table = build_config(str(preset), {"num_seeds": seeds, "seed": seed})
-    env, env_params = make_harv_env(env_table)
+    spec = load_spec(str(preset), {"num_seeds": seeds, "seed": seed})
+    cfg = spec.ppo
+    env, env_params = make_harv_env(spec)
     trainer = make_train(env, cfg, env_params, episode_metrics_fn=harv_episode_metrics)
     run_dir.mkdir(parents=True, exist_ok=True)
-    hook, _ = make_eval_hook(trainer, cfg, env_params, env_table, None, run_dir)
+    hook, _ = make_eval_hook(trainer, spec, env_params, run_dir)
 
     def progress(p: int, row: dict) -> None:
         print(f"period {p + 1} {row['wall_s']:.0f} s", flush=True)

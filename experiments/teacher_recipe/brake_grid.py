@@ -3,12 +3,11 @@ makes the best teacher by the mean recovery time and the share of runs slower th
 
     python experiments/teacher_recipe/brake_grid.py --mc-seed 11 --out results/brake_grid_mc11.json
     python experiments/teacher_recipe/brake_grid.py --zoom --mc-seed 11 --out results/zoom_grid_mc11.json
-    python experiments/teacher_recipe/brake_grid.py --blend --mc-seed 11 --out results/blend_grid_mc11.json
 
 ``--zoom`` sweeps the bound of ``smc-brake-zoom`` instead (alpha_brake 1.0 rad while
 V_switch < V < V_zoom - k_zoom max(gamma, 0)): V_switch x V_zoom x k_zoom, also by the control TV.
-``--blend`` sweeps the width of the blend of ``smc-brake-zoom``'s reference across its bounds
-(``smc-brake-zoom-soft``: 100 ft/s).
+(The ``--blend`` sweep of ``results/blend_grid_mc11.json`` ran at commit d2131df, with the blended
+schedule that has since left the package.)
 Monte Carlo seed 11 is the tuning seed of this study (the final evaluation uses others).
 """
 
@@ -24,8 +23,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from harv_jax.aircraft import harv
-from harv_jax.control.smc import SMCConfig, make_smc
-from harv_jax.control.smc_brake import SOFT_RESET_TOL_RAD, brake_schedule, make_smc_brake, zoom_schedule
+from harv_jax.control.smc import make_smc
+from harv_jax.control.smc_brake import brake_schedule, make_smc_brake
 from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
 from harv_jax.evaluation.paired import mean_nr_at_run_s, paired_vs_reference
 from harv_jax.task.spec import ALPHA_TARGET_RAD
@@ -41,9 +40,6 @@ ZOOM_GRID = {
     "zoom_slope_fps_per_rad": (300.0, 600.0, 900.0, 1200.0),
 }
 
-#: The ``--blend`` widths of smc-brake-zoom's reference blend, ft/s (0: the step).
-BLEND_GRID = (0.0, 50.0, 100.0, 200.0, 300.0)
-
 
 def times(ctrl, inputs):
     m = run_mc(ctrl, inputs, REF, N_STEPS)[0].metrics
@@ -52,13 +48,8 @@ def times(ctrl, inputs):
     return np.where(rec, np.asarray(m.t_recover_s, np.float64), np.nan), rec, tv
 
 
-def controller(setting: dict[str, float], blend: bool):
-    """The braking SMC of one grid point: ``smc-brake-zoom`` with a blend width (``--blend``: its SMC
-    resets the integral only on steps above SOFT_RESET_TOL_RAD when the width is > 0), else the schedule
-    of ``brake_schedule(**setting)``."""
-    if blend:
-        cfg = SMCConfig(reference_step_tol_rad=SOFT_RESET_TOL_RAD if setting["blend_fps"] > 0 else 0.0)
-        return make_smc_brake(cfg, schedule=zoom_schedule(**setting))
+def controller(setting: dict[str, float]):
+    """The braking SMC of one grid point: the schedule of ``brake_schedule(**setting)``."""
     return make_smc_brake(schedule=brake_schedule(**setting))
 
 
@@ -67,31 +58,27 @@ def main() -> None:
     ap.add_argument("--mc-seed", type=int, default=11)
     ap.add_argument("--n", type=int, default=1000)
     ap.add_argument("--zoom", action="store_true", help="sweep smc-brake-zoom's bound instead")
-    ap.add_argument("--blend", action="store_true", help="sweep smc-brake-zoom's blend width instead")
     ap.add_argument("--out", type=Path, required=True)
     a = ap.parse_args()
     inputs = sample_mc_inputs(jax.random.key(a.mc_seed), a.n, harv())
     t_smc, r_smc, tv_smc = times(make_smc(), inputs)
     smc_mean_s = mean_nr_at_run_s(t_smc, r_smc, DURATION_S)
-    if a.blend:
-        grid = {"blend_fps": BLEND_GRID}
-    else:
-        grid = ZOOM_GRID if a.zoom else GRID
-    if a.zoom or a.blend:
+    grid = ZOOM_GRID if a.zoom else GRID
+    if a.zoom:
         rows = [{"controller": "smc", "mean_s": smc_mean_s, "tv_rad": tv_smc}]
     else:
         rows = [{"alpha_brake_rad": None, "v_switch_fps": None, "mean_s": smc_mean_s, "tv_rad": tv_smc}]
     for values in itertools.product(*grid.values()):
         setting = dict(zip(grid, values, strict=True))
-        t, r, tv = times(controller(setting, a.blend), inputs)
+        t, r, tv = times(controller(setting), inputs)
         vs = paired_vs_reference(t, r, t_smc, r_smc, DURATION_S)
-        if not (a.zoom or a.blend):  # the row's key order of the committed results
+        if not a.zoom:  # the row's key order of the committed results
             setting = {"alpha_brake_rad": setting["alpha_brake_rad"], "v_switch_fps": setting["v_switch_fps"]}
         row = {**setting, "recovered": float(r.mean()),
                "mean_s": mean_nr_at_run_s(t, r, DURATION_S), "tv_rad": tv, **vs}  # fmt: skip
         rows.append(row)
         print(json.dumps(row), flush=True)
-    flag = " --blend" if a.blend else " --zoom" if a.zoom else ""
+    flag = " --zoom" if a.zoom else ""
     cmd = f"python experiments/teacher_recipe/brake_grid.py{flag} --mc-seed {a.mc_seed} --n {a.n}"
     a.out.write_text(json.dumps({"command": cmd, "rows": rows}, indent=2) + "\n")
 

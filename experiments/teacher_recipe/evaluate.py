@@ -6,9 +6,9 @@ slower / faster than the SMC by more than 1 s, p95, control TV, and the 30 s dev
 
 For each run folder, each ``policy/policy_seed<i>.npz`` flies RL-only (``rl``) and in the default hybrid
 (``hybrid``, simplex schedule) on the 1000-run Monte Carlo of ``harv-jax mc`` (``--runs``, nominal aircraft
-and ``--randomize``), with the SMC and the braking SMCs (``smc-brake``, ``smc-brake-v0``, ``smc-brake-zoom``,
-``smc-brake-zoom-soft``) on the same runs (common random numbers), and on the 30 s spin of ``harv-jax
-compare``. Writes JSON (every seed, IQM with a 95% bootstrap CI over seeds, which seeds pass each criterion)
+and ``--randomize``), with the SMC and the braking SMCs (``smc-brake``, ``smc-brake-zoom``) on the same
+runs (common random numbers), and on the 30 s spin of ``harv-jax compare``.
+Writes JSON (every seed, IQM with a 95% bootstrap CI over seeds, which seeds pass each criterion)
 and prints one table row per policy.
 """
 
@@ -40,7 +40,7 @@ KNOWN_AIRCRAFT = DisturbanceSpec(model_error=1.0, controller_knows_aircraft=True
 N_STEPS = 6000
 REF = jnp.asarray([ALPHA_TARGET_RAD, 0.0, 0.0])
 #: The model-based controllers every policy is compared with, the SMC first.
-BASELINES = ("smc", "smc-brake", "smc-brake-v0", "smc-brake-zoom", "smc-brake-zoom-soft")
+BASELINES = ("smc", "smc-brake", "smc-brake-zoom")
 
 
 def cpu_model() -> str:
@@ -51,7 +51,7 @@ def cpu_model() -> str:
 
 
 def _key(name: str) -> str:
-    """A controller name as a JSON key (``smc-brake-v0`` -> ``smc_brake_v0``)."""
+    """A controller name as a JSON key (``smc-brake-zoom`` -> ``smc_brake_zoom``)."""
     return name.replace("-", "_")
 
 

@@ -142,31 +142,51 @@ def register(app: typer.Typer) -> None:
         aircraft_name: str | None = None,
     ) -> None:
         """Train PPO policies (several seeds at once) on the spin/upset recovery env."""
-        overrides = {
-            "total_steps": steps,
-            "num_envs": num_envs,
-            "unroll": unroll,
-            "epochs": epochs,
-            "minibatches": minibatches,
-            "lr": lr,
-            "num_seeds": seeds,
-            "seed": seed,
-            "num_periods": periods,
-            "checkpoint_every": checkpoint_every,
-        }
-        overrides["demos"] = demos
-        summary = run_train(
-            preset,
-            overrides,
-            out,
-            resume,
-            force,
-            init_policy,
-            target_recovery=target_recovery,
-            watchdog_s=watchdog_s,
-            in_loop=in_loop,
-            aircraft=aircraft_name,
-        )
+        from harv_jax.training.demos import resolve_demos_path
+        from harv_jax.training.presets import load_spec
+
+        check_run_flags(periods, checkpoint_every, watchdog_s)
+        if resume is not None:  # the stored spec: a setting given here would be ignored
+            settings = {
+                "--preset": preset,
+                "--steps": steps,
+                "--num-envs": num_envs,
+                "--unroll": unroll,
+                "--epochs": epochs,
+                "--minibatches": minibatches,
+                "--lr": lr,
+                "--seeds": seeds,
+                "--seed": seed,
+                "--periods": periods,
+                "--checkpoint-every": checkpoint_every,
+                "--demos": demos,
+                "--init-policy": init_policy,
+                "--in-loop": in_loop,
+                "--aircraft": aircraft_name,
+                "--target-recovery": target_recovery,
+            }
+            given = [flag for flag, v in settings.items() if v is not None]
+            if given:
+                raise UsageError(f"--resume continues the stored configuration; drop {given[0]}")
+            summary = run_train(None, out, force, watchdog_s, resume=resume)
+        else:
+            overrides = {
+                "total_steps": steps,
+                "num_envs": num_envs,
+                "unroll": unroll,
+                "epochs": epochs,
+                "minibatches": minibatches,
+                "lr": lr,
+                "num_seeds": seeds,
+                "seed": seed,
+                "num_periods": periods,
+                "checkpoint_every": checkpoint_every,
+                # from the current directory, recorded absolute
+                "demos": resolve_demos_path(demos) if (demos or "").strip() else demos,
+            }
+            spec = load_spec(preset, overrides, in_loop, aircraft_name, init_policy, target_recovery)
+            check_periods(spec.ppo, periods)
+            summary = run_train(spec, out, force, watchdog_s)
         ret = summary.get("episode_return", {})
         rec = summary.get("episode/recovered", {})
         typer.echo(

@@ -64,13 +64,7 @@ from harv_jax.control.supervisor import (
     supervisor_init,
 )
 from harv_jax.control.zeta_schedules import ZetaInputs, zeta_schedule
-from harv_jax.task.spaces import (
-    ObservationLayout,
-    ObservationMemory,
-    action_to_command,
-    observation,
-    observation_memory_init,
-)
+from harv_jax.task.spaces import action_to_command, observation
 from harv_jax.task.spec import (
     RECOVERY_ALPHA_TOL_RAD,
     RECOVERY_BETA_TOL_RAD,
@@ -186,15 +180,12 @@ class HybridConfig:
         smc: SMCConfig of the feedback term.
         supervisor: enable the fallback supervisor.
         window_steps: length of the supervisor's intervention window, steps.
-        observation: the policy's observation layout (default the paper's 11; with the engagement airspeed
-            or the tracking-error integral the hybrid keeps them in its state, as the env computes them).
     """
 
     schedule: ZetaScheduleName = DEFAULT_ZETA
     smc: SMCConfig = SMCConfig()
     supervisor: bool = True
     window_steps: int = 100
-    observation: ObservationLayout = ObservationLayout()
 
     def __post_init__(self) -> None:
         if self.schedule not in ZETA_SCHEDULES:
@@ -216,8 +207,6 @@ class HybridState:
         supervisor: SupervisorState.
         simplex: SimplexState of the ``simplex`` schedule.
         interventions: int32 [3] per-channel count of steps the filter changed the command.
-        obs_memory: what the policy's observation keeps from earlier observations
-            (``harv_jax.task.spaces.ObservationMemory``).
     """
 
     params: AircraftParams
@@ -228,7 +217,6 @@ class HybridState:
     supervisor: SupervisorState
     simplex: SimplexState
     interventions: jnp.ndarray
-    obs_memory: ObservationMemory
 
 
 def make_hybrid(
@@ -271,14 +259,12 @@ def make_hybrid(
             supervisor=supervisor_init(cfg.window_steps, dtype),
             simplex=simplex_init(dtype),
             interventions=jnp.zeros((3,), jnp.int32),
-            obs_memory=observation_memory_init(dtype),
         )
 
     def apply(state: HybridState, x_wind: jnp.ndarray, reference_rad: jnp.ndarray, key: jax.Array):
         del key  # deterministic
         params = state.params
         obs = observation(x_wind, reference_rad)
-        obs, memory = cfg.observation.extend(obs, state.obs_memory, dt_s)
         a = jnp.clip(act(obs), -1.0, 1.0)
         u_rl_raw = action_to_command(a, params.u_min_rad, params.u_max_rad).astype(state.u_prev_rad.dtype)
         u_rl, cap_active = cap_authority(u_rl_raw, params, g.authority_frac)
@@ -323,7 +309,6 @@ def make_hybrid(
             supervisor=sup,
             simplex=watch.simplex,
             interventions=state.interventions + chan.astype(jnp.int32),
-            obs_memory=memory,
         )
         info = {
             "zeta": jnp.mean(z.zeta),

@@ -27,7 +27,6 @@ from harv_jax.errors import UsageError
 
 if TYPE_CHECKING:  # the table stays importable without jax (the CLI checks its arguments first)
     from harv_jax.control.base import Controller
-    from harv_jax.task.spaces import ObservationLayout
 
 #: The hybrid's default zeta schedule: the policy alone until a monitor hands over to the SMC for good
 #: (``control.scheduling.simplex_step``; ``experiments/hybrid_simplex/README.md``).
@@ -83,14 +82,6 @@ def _build_smc_brake(opts: ControllerOptions) -> Controller:
     return make_smc_brake(SMCConfig(switching=opts.switching))
 
 
-def _build_smc_brake_v0(opts: ControllerOptions) -> Controller:
-    from harv_jax.control.smc import SMCConfig
-    from harv_jax.control.smc_brake import V_ENGAGE_MAX_FPS, brake_schedule, make_smc_brake
-
-    schedule = brake_schedule(v_engage_max_fps=V_ENGAGE_MAX_FPS)
-    return make_smc_brake(SMCConfig(switching=opts.switching), schedule=schedule)
-
-
 def _build_smc_brake_zoom(opts: ControllerOptions) -> Controller:
     from harv_jax.control import smc_brake as sb
     from harv_jax.control.smc import SMCConfig
@@ -98,44 +89,32 @@ def _build_smc_brake_zoom(opts: ControllerOptions) -> Controller:
     return sb.make_smc_brake(SMCConfig(switching=opts.switching), schedule=sb.zoom_schedule())
 
 
-def _build_smc_brake_zoom_soft(opts: ControllerOptions) -> Controller:
-    from harv_jax.control import smc_brake as sb
-    from harv_jax.control.smc import SMCConfig
-
-    cfg = SMCConfig(switching=opts.switching, reference_step_tol_rad=sb.SOFT_RESET_TOL_RAD)
-    return sb.make_smc_brake(cfg, schedule=sb.zoom_schedule(blend_fps=sb.SOFT_BLEND_FPS))
-
-
-def _policy_act(policy: str | None) -> tuple[Callable, ObservationLayout]:
-    """The deterministic action of the policy at ``policy`` and its observation layout (11, 12 or 14
-    observations); UsageError if its sizes do not fit."""
+def _policy_act(policy: str | None) -> Callable:
+    """The deterministic action of the policy at ``policy``; UsageError if its sizes do not fit."""
     from harv_jax.policy import resolve_policy
-    from harv_jax.task.spaces import ACTION_SIZE, ALLOWED_OBSERVATION_SIZES, LAYOUTS
+    from harv_jax.task.spaces import check_policy_sizes
 
     pol = resolve_policy(policy)
-    sizes = (pol.networks.observation_size, pol.networks.action_size)
-    if sizes[0] not in LAYOUTS or sizes[1] != ACTION_SIZE:
-        raise UsageError(
-            f"--policy {policy!r} maps {sizes[0]} observations to {sizes[1]} actions; this aircraft's "
-            f"controller needs {ALLOWED_OBSERVATION_SIZES} -> {ACTION_SIZE}"
-        )
-    return pol.deterministic, LAYOUTS[sizes[0]]
+    try:
+        check_policy_sizes(pol.networks.observation_size, pol.networks.action_size)
+    except ValueError as e:
+        raise UsageError(f"--policy {policy!r}: {e}") from None
+    return pol.deterministic
 
 
 def _build_rl(opts: ControllerOptions) -> Controller:
     from harv_jax.control.rl import make_rl_controller
 
-    act, layout = _policy_act(opts.policy)
-    return make_rl_controller(act, layout=layout)
+    return make_rl_controller(_policy_act(opts.policy))
 
 
 def _build_hybrid(opts: ControllerOptions) -> Controller:
     from harv_jax.control.hybrid import ZETA_SCHEDULES, HybridConfig, make_hybrid
 
-    act, layout = _policy_act(opts.policy)
+    act = _policy_act(opts.policy)
     if opts.zeta not in ZETA_SCHEDULES:
         raise UsageError(f"--zeta {opts.zeta!r} is unknown; allowed: {', '.join(ZETA_SCHEDULES)}")
-    return make_hybrid(act, HybridConfig(schedule=opts.zeta, observation=layout))
+    return make_hybrid(act, HybridConfig(schedule=opts.zeta))
 
 
 #: The controllers, in help order.
@@ -155,20 +134,10 @@ CONTROLLERS: dict[str, ControllerEntry] = {
         ("switching",),
         "the SMC flying alpha_d = 1.0 rad while V > 500 ft/s: brakes by drag (harv_jax.control.smc_brake)",
     ),
-    "smc-brake-v0": ControllerEntry(
-        _build_smc_brake_v0,
-        ("switching",),
-        "smc-brake if the airspeed at engagement is below 1200 ft/s, else the SMC (control.smc_brake)",
-    ),
     "smc-brake-zoom": ControllerEntry(
         _build_smc_brake_zoom,
         ("switching",),
         "smc-brake while 600 < V < 1200 - 600 max(gamma, 0) ft/s: not in a zoom climb (control.smc_brake)",
-    ),
-    "smc-brake-zoom-soft": ControllerEntry(
-        _build_smc_brake_zoom_soft,
-        ("switching",),
-        "smc-brake-zoom with its alpha reference blended over 100 ft/s at each bound (control.smc_brake)",
     ),
 }
 

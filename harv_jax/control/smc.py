@@ -129,7 +129,6 @@ class SMCConfig:
         switching: ``"sat"`` (boundary layer sat(s/phi)) or ``"sign"`` (the paper's discontinuous law).
         dt_s: controller step = plant step, s (integrates the surface's integral term).
         reset_integral_on_reference_change: zero the integral when the reference steps.
-        reference_step_tol_rad: only a reference move above this counts as a step, rad (0: any move).
         freeze_integral_when_saturated: anti-windup by conditional integration.
         vertical_mu_handling: blend the mu row to p_w damping near gamma = +-90 deg (else pure mu SMC).
     """
@@ -137,7 +136,6 @@ class SMCConfig:
     switching: Literal["sat", "sign"] = "sat"
     dt_s: float = DT_S
     reset_integral_on_reference_change: bool = True
-    reference_step_tol_rad: float = 0.0
     freeze_integral_when_saturated: bool = True
     vertical_mu_handling: bool = True
 
@@ -367,9 +365,7 @@ def make_smc(cfg: SMCConfig | None = None, gains: SMCGains | None = None) -> Con
         params = state.params
         integral = state.integral_rad_s
         if cfg.reset_integral_on_reference_change:
-            prev, tol = state.reference_prev_rad, cfg.reference_step_tol_rad
-            moved = jnp.abs(reference_rad - prev) > tol if tol > 0.0 else reference_rad != prev
-            changed = state.has_reference & jnp.any(moved)
+            changed = state.has_reference & jnp.any(reference_rad != state.reference_prev_rad)
             integral = jnp.where(changed, 0.0, integral)
         u_raw, terms = smc_command(x_wind, reference_rad, integral, params, gains_, cfg)
         u_raw = jnp.where(jnp.all(jnp.isfinite(u_raw)), u_raw, state.u_prev_rad)

@@ -15,7 +15,6 @@ reset bounds); docs/model.md ("Envelope and reset bounds").
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import jax
 import jax.numpy as jnp
@@ -34,7 +33,6 @@ from harv_jax.dynamics.disturbances import (
 from harv_jax.env.reward_params import RewardParams, paper_reward_params
 from harv_jax.task.criteria import Envelope, default_envelope
 from harv_jax.task.scenarios import RESET_HIGH, RESET_LOW
-from harv_jax.task.spaces import ObservationLayout
 from harv_jax.task.spec import (
     ALPHA_TARGET_BOUNDS_RAD,
     BETA_TARGET_RAD,
@@ -70,15 +68,6 @@ class EnvConfig:
         h0_ft: default initial altitude, ft (copied into ``EnvParams.h0_ft``).
         h_floor_ft: default altitude floor, ft (copied into ``EnvParams.envelope.h_floor_ft``).
         discount: default PBRS discount Gamma (= the PPO discount; paper 0.99).
-        observe_engage_airspeed: the observation gains a 12th component, the airspeed of the episode's
-            first observation, ft/s (``task.spaces.ENGAGE_OBS_NAMES``; default off: the paper's 11).
-        observe_tracking_integral: the observation gains three components, the integral of the tracking
-            error, rad s (``task.spaces.INTEGRAL_OBS_NAMES``; default off; not with
-            ``observe_engage_airspeed``).
-        v0_fast_weight: density of the initial airspeed above ``v0_fast_from_fps`` relative to below it in
-            the uniform resets (1: uniform over the reset bounds, the paper; 2: fast engagements twice as
-            likely per ft/s). Spin resets and the Monte Carlo's runs are not affected.
-        v0_fast_from_fps: where the weighted band of initial airspeeds starts, ft/s.
     """
 
     dt_s: float = DT_S
@@ -90,17 +79,6 @@ class EnvConfig:
     h_floor_ft: float = H_FLOOR_FT
     discount: float = 0.99
     aircraft: str = DEFAULT_AIRCRAFT
-    observe_engage_airspeed: bool = False
-    observe_tracking_integral: bool = False
-    v0_fast_weight: float = 1.0
-    v0_fast_from_fps: float = 1000.0
-
-    @property
-    def observation_layout(self) -> ObservationLayout:
-        """The layout of the observation (11, 12 or 14 components)."""
-        return ObservationLayout(
-            engage_airspeed=self.observe_engage_airspeed, tracking_integral=self.observe_tracking_integral
-        )
 
     def __post_init__(self) -> None:
         if not self.dt_s > 0:
@@ -111,12 +89,7 @@ class EnvConfig:
             raise ValueError(f"max_delay_steps={self.max_delay_steps!r} must be >= 0")
         if not 0.0 < self.discount <= 1.0:
             raise ValueError(f"discount={self.discount!r} must be in (0, 1]")
-        if not (math.isfinite(self.v0_fast_weight) and self.v0_fast_weight > 0):
-            raise ValueError(f"v0_fast_weight={self.v0_fast_weight!r} must be finite and > 0")
-        if not (math.isfinite(self.v0_fast_from_fps) and self.v0_fast_from_fps > 0):
-            raise ValueError(f"v0_fast_from_fps={self.v0_fast_from_fps!r} must be finite and > 0")
         check_aircraft_name(self.aircraft)
-        _ = self.observation_layout  # ValueError for both extensions at once
 
 
 @struct.dataclass

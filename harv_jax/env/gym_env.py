@@ -29,7 +29,7 @@ from harv_jax.env.config import EnvConfig, EnvParams
 from harv_jax.env.recovery import EnvState, make_env
 from harv_jax.env.reward import RewardTerms
 from harv_jax.env.termination import TerminationFlags
-from harv_jax.task.spaces import ACTION_SIZE
+from harv_jax.task.spaces import ACTION_SIZE, OBS_HIGH, OBS_LOW
 from harv_jax.task.spec import ALPHA_TARGET_RAD, BETA_TARGET_RAD, MU_TARGET_RAD
 
 _SEED_HIGH = 2**31 - 1
@@ -61,7 +61,7 @@ class HarvRecoveryEnv(gym.Env):
         core = make_env(config)
         self._config = core.config
         self._params = params if params is not None else core.default_params()
-        low, high = core.config.observation_layout.bounds()
+        low, high = OBS_LOW, OBS_HIGH
         self._n_obs = core.observation_size
         self.observation_space = gym.spaces.Box(low=low, high=high, dtype=np.float32)
         self.action_space = gym.spaces.Box(low=-1.0, high=1.0, shape=(ACTION_SIZE,), dtype=np.float32)

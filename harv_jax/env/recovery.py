@@ -62,17 +62,14 @@ from harv_jax.env import randomize, reward
 from harv_jax.env.config import EnvConfig, EnvParams, default_params
 from harv_jax.env.randomize import EpisodeParams
 from harv_jax.env.termination import termination_flags
-from harv_jax.task.scenarios import weighted_airspeed
 from harv_jax.task.spaces import (
     ACTION_SIZE,
     NUM_MEASURED,
     OBSERVATION_SIZE,
-    ObservationMemory,
     action_to_command,
     clean_observation,
     command_to_action,
     finish_observation,
-    observation_memory_init,
 )
 
 _MU, _CHI = WIND_INDEX["mu"], WIND_INDEX["chi"]
@@ -107,8 +104,6 @@ class EnvState:
         step: int32 steps taken in this episode.
         potential: PBRS potential sigma of the current state.
         episode: this episode's randomized parameters.
-        obs_memory: what the observation keeps from the episode's earlier observations (the engagement
-            airspeed, the tracking-error integral: ``EnvConfig.observation_layout``).
     """
 
     aircraft: BodyState
@@ -120,7 +115,6 @@ class EnvState:
     step: jnp.ndarray
     potential: jnp.ndarray
     episode: EpisodeParams
-    obs_memory: ObservationMemory
 
 
 class Env(NamedTuple):
@@ -135,7 +129,7 @@ class Env(NamedTuple):
         reset_to: (key, x_wind [10], target [3], params) -> (obs, EnvState): start at a given state.
         batch_step: (keys [N], states, actions [N, 3], params) -> vmap(step) outputs, with the resets
             computed only on steps where some env is done (faster for long episodes).
-        observation_size: 11 (12 or 14 with ``EnvConfig.observation_layout``).
+        observation_size: 11.
         action_size: 3.
     """
 
@@ -204,11 +198,6 @@ def make_env(config: EnvConfig | None = None) -> Env:
         x_uniform = jnp.concatenate(
             [rp.low + (rp.high - rp.low) * u01[:_N_RESET_STATE], 0.0 * u01[:1], params.h0_ft[None]]
         )  # chi = 0, h = h0
-        if config.v0_fast_weight != 1.0:
-            v0 = weighted_airspeed(
-                u01[0], rp.low[0], rp.high[0], config.v0_fast_from_fps, config.v0_fast_weight
-            )
-            x_uniform = x_uniform.at[0].set(v0)
         n_spin = params.spin_states.shape[0]
         idx = jnp.minimum(jnp.floor(u01[_U_SPIN_INDEX] * n_spin).astype(jnp.int32), n_spin - 1)
         x_spin = params.spin_states[idx] + params.spin_perturb * (2.0 * u01[_U_SPIN_PERTURB] - 1.0)
@@ -223,8 +212,6 @@ def make_env(config: EnvConfig | None = None) -> Env:
         if noise8 is not None:
             obs = obs.at[:NUM_MEASURED].add(randomize.sensor_noise(noise8, ep))
         return finish_observation(obs)
-
-    layout = config.observation_layout
 
     def _uniform(key: jax.Array, n: int, params: EnvParams) -> jnp.ndarray:
         dtype = params.reset.low.dtype
@@ -261,7 +248,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
             ep = randomize.nominal_episode(params.aircraft, params.randomization)
             gust = jnp.zeros((3,), dtype)
             noise8 = None
-        obs, memory = layout.extend(_observe(noise8, x0, target, ep), observation_memory_init(dtype), dt_s)
+        obs = _observe(noise8, x0, target, ep)
         state = EnvState(
             aircraft=from_wind(x0),
             wind=x0,
@@ -272,7 +259,6 @@ def make_env(config: EnvConfig | None = None) -> Env:
             step=jnp.zeros((), dtype=jnp.int32),
             potential=reward.state_potential(x0, target, params.reward),
             episode=ep,
-            obs_memory=memory,
         )
         return obs, state
 
@@ -314,7 +300,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
         terms, pot_next = reward.reward_terms(
             x, state.target_rad, a, state.potential, terminated, params.reward, a_prev
         )
-        obs, memory = layout.extend(_observe(noise8, x, state.target_rad, ep), state.obs_memory, dt_s)
+        obs = _observe(noise8, x, state.target_rad, ep)
         new_state = state.replace(
             aircraft=body,
             wind=x,
@@ -323,7 +309,6 @@ def make_env(config: EnvConfig | None = None) -> Env:
             gust_fps=gust,
             step=t,
             potential=pot_next,
-            obs_memory=memory,
         )
         info = {
             "reward_terms": terms._asdict(),
@@ -388,5 +373,5 @@ def make_env(config: EnvConfig | None = None) -> Env:
         default_params=lambda: default_params(config),
         reset_to=reset_to,
         batch_step=batch_step,
-        observation_size=layout.size,
+        observation_size=OBSERVATION_SIZE,
     )

@@ -34,8 +34,7 @@ paper's bit for bit, ``tests/test_reward.py``):
                   dense_alpha are paid on alpha - (w_alpha alpha_d + (1 - w_alpha) alpha_brake), and with a
                   zoom bound on alpha - (alpha_d + (1 - w_alpha) w_zoom (alpha_brake - alpha_d)), w_zoom = 0
                   above V = alpha_brake_v_zoom - alpha_brake_zoom_slope max(gamma, 0) (not braked in a zoom)
-    speed       = -speed_weight clip((V - speed_ref) / speed_scale, 0, 1)   (excess speed, ft/s)
-    reward      = paper reward + dense + recovered + action_rate + speed   (non-terminal step)
+    reward      = paper reward + dense + recovered + action_rate   (non-terminal step)
     reward   = terminal_reward + (Gamma * 0 - sigma_t)                 (terminating step)
 
 The paper lists the bonuses and the action penalty as "Additional Reward" next to the blended phases, so
@@ -84,7 +83,6 @@ class RewardTerms(NamedTuple):
     dense_mu: jnp.ndarray
     recovered: jnp.ndarray
     action_rate: jnp.ndarray
-    speed: jnp.ndarray
     total: jnp.ndarray
 
 
@@ -156,12 +154,6 @@ def zoom_weight(v_fps: jnp.ndarray, gamma_rad: jnp.ndarray, params: RewardParams
         gamma_rad, 0.0
     )
     return smoothstep_falling(v_fps, bound - ZOOM_BAND_FPS, bound)
-
-
-def speed_penalty(v_fps: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
-    """Excess-speed term -speed_weight clip((V - speed_ref_fps) / speed_scale_fps, 0, 1)."""
-    excess = jnp.clip((v_fps - params.speed_ref_fps) / params.speed_scale_fps, 0.0, 1.0)
-    return -params.speed_weight * excess
 
 
 def dense_tracking(errors_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
@@ -250,11 +242,10 @@ def reward_terms(
     dense = dense_tracking(track_errors, params) * channel_w
     r_recovered = recovered_term(errors, pqr, params)
     r_rate = action_rate_penalty(action, action if action_prev is None else action_prev, params)
-    r_speed = speed_penalty(vt_fps(x_wind), params)
     zero = jnp.zeros_like(r_raw)
     r_terminal = jnp.where(terminated, params.terminal_reward, zero)
     # the paper's sum first, our terms added after it: zero weights leave it bit for bit
-    performance = (r_raw + jnp.sum(bonus) + r_action) + (jnp.sum(dense) + r_recovered + r_rate + r_speed)
+    performance = (r_raw + jnp.sum(bonus) + r_action) + (jnp.sum(dense) + r_recovered + r_rate)
     total = jnp.where(terminated, r_terminal, performance) + r_shaping
     # the performance terms, paid only on a non-terminating step (reported as 0 on a terminating one)
     paid = {
@@ -271,7 +262,6 @@ def reward_terms(
         "dense_mu": dense[2],
         "recovered": r_recovered,
         "action_rate": r_rate,
-        "speed": r_speed,
     }
     terms = RewardTerms(
         **{k: jnp.where(terminated, zero, v) for k, v in paid.items()},

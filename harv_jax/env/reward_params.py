@@ -111,11 +111,6 @@ class RewardParams:
     alpha_brake_zoom_slope_fps_per_rad: jnp.ndarray = _field(
         0.0, 0.0, 1e4, "how much the climb angle lowers that bound, ft/s per rad"
     )
-    speed_weight: jnp.ndarray = _field(
-        0.0, 0.0, 1000.0, "weight of the excess-speed term -clip((V - speed_ref) / speed_scale, 0, 1)"
-    )
-    speed_ref_fps: jnp.ndarray = _field(600.0, 0.0, 1e4, "speed above which the excess-speed term acts, ft/s")
-    speed_scale_fps: jnp.ndarray = _field(400.0, 1.0, 1e4, "excess speed at which that term saturates, ft/s")
 
 
 def reward_fields() -> tuple[dataclasses.Field, ...]:

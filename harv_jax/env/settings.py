@@ -58,10 +58,6 @@ ENV_RANGES: dict[str, tuple[float, float] | None] = {
     "h0_ft": (1.0, 65_000.0),
     "h_floor_ft": (-1e9, 65_000.0),
     "discount": (1e-6, 1.0),
-    "observe_engage_airspeed": None,
-    "observe_tracking_integral": None,
-    "v0_fast_weight": (0.01, 100.0),
-    "v0_fast_from_fps": (1.0, 2000.0),
 }
 
 #: Allowed range and length (None: scalar) of every reward field, as ``RewardParams`` declares them.

@@ -28,7 +28,6 @@ import jax.numpy as jnp
 import optax
 
 from harv_jax.ppo import config as ppo_config
-from harv_jax.ppo import demos as demos_lib
 from harv_jax.ppo import normalize as obs_norm
 from harv_jax.ppo import sharding, shuffle
 from harv_jax.ppo.acting import (
@@ -40,7 +39,15 @@ from harv_jax.ppo.acting import (
     episode_metric_names,
 )
 from harv_jax.ppo.config import PPOConfig
-from harv_jax.ppo.losses import DemoBatch, PPOBatch, compute_gae, ppo_loss, successor_values
+from harv_jax.ppo.loss_terms import LossTerm, TermContext, put_inputs
+from harv_jax.ppo.losses import (
+    LossWeights,
+    PPOBatch,
+    PPOLossSettings,
+    compute_gae,
+    ppo_loss,
+    successor_values,
+)
 from harv_jax.ppo.networks import (
     PPOParams,
     gaussian_log_prob,
@@ -69,7 +76,7 @@ def make_train(
     env_params: Any,
     devices: Sequence[jax.Device] | None = None,
     episode_metrics_fn: EpisodeMetricsFn | None = None,
-    demos: tuple[Any, Any] | None = None,
+    terms: Sequence[LossTerm] = (),
 ) -> Trainer:
     """Build the jitted init and period functions for ``env`` and ``cfg``.
 
@@ -82,10 +89,9 @@ def make_train(
             all accelerators, or one CPU device).
         episode_metrics_fn: one env's ``info`` -> dict of scalars, averaged over the episodes that end in a
             period and reported as ``episode/<name>`` (default [`default_episode_metrics`][]).
-        demos: (observations [M, O], actions [M, A] in [-1, 1]) demonstration pairs, raw as the env
-            observes (None: none). They are put on the devices once; every SGD step clones a minibatch of
-            them drawn with the learner's key, through the learner's observation normalizer, with the
-            ``bc_coef`` schedule (the BC term of [`ppo_loss`][harv_jax.ppo.losses.ppo_loss]).
+        terms: loss terms added to the PPO loss, in this order ([`harv_jax.ppo.loss_terms`][]); their
+            inputs are put on the devices once and passed into the compiled period. None: the plain PPO
+            loss.
 
     Returns:
         A [`Trainer`][].
@@ -105,28 +111,17 @@ def make_train(
     clip_value = cfg.clip_value_eps if cfg.clip_value_eps > 0 else None
     batch_sharding = sharding.batch_sharding(mesh)
 
-    use_bc = cfg.bc_coef > 0 or cfg.bc_coef_end > 0
-    use_teacher = use_bc and "teacher_action" in env_info_keys(env, env_params)
-    if use_bc and not use_teacher and demos is None:
-        raise ValueError("bc_coef > 0 needs an env whose info has 'teacher_action' (a teacher env) or demos")
-    demo_data = None if demos is None else demos_lib.check_demos(demos, obs_size, act_size, use_bc)
+    terms = tuple(terms)
+    for term in terms:
+        term.check(env_info_keys(env, env_params), obs_size, act_size)
     n_updates = ppo_config.total_updates(cfg)
-    use_temporal = cfg.smooth_temporal_coef > 0
-    use_spatial = cfg.smooth_spatial_coef > 0
-    smooth_kwargs = {  # absent when off: the plain PPO loss, bit for bit
-        **({"smooth_temporal_coef": cfg.smooth_temporal_coef} if use_temporal else {}),
-        **({"smooth_spatial_coef": cfg.smooth_spatial_coef} if use_spatial else {}),
-    }
+    settings = PPOLossSettings(cfg.clip_eps, cfg.vf_coef, cfg.ent_coef, clip_value, cfg.normalize_advantage)
 
-    def loss_schedule(update_step: jax.Array) -> dict[str, jax.Array]:
-        """The BC weight (linear from bc_coef to bc_coef_end) and the policy-gradient switch (pg_start)."""
-        if not use_bc and cfg.pg_start == 0:
-            return {}  # the plain PPO loss, bit for bit
+    def loss_weights(update_step: jax.Array) -> LossWeights:
+        """The actor factor (0 before ``pg_start`` of the run, 1 after) and each term's coefficient."""
         frac = update_step.astype(jnp.float32) / n_updates
-        out = {"pg_on": (frac >= cfg.pg_start).astype(jnp.float32)}
-        if use_bc:
-            out["bc_coef"] = cfg.bc_coef + (cfg.bc_coef_end - cfg.bc_coef) * frac
-        return out
+        actor = (frac >= cfg.pg_start).astype(jnp.float32) if cfg.pg_start > 0 else None
+        return LossWeights(actor, tuple(t.coef(frac) for t in terms))
 
     def normalise(normalizer: obs_norm.RunningStats, obs: jax.Array) -> jax.Array:
         return obs_norm.normalize(normalizer, obs) if cfg.normalize_observations else obs
@@ -193,8 +188,8 @@ def make_train(
                 ep[f"info_{k}"] += jnp.sum(ended * ep_metrics[k])
             ep_ret = ep_ret * (1.0 - ended)
             ep_len = jnp.where(ended > 0, 0, ep_len)
-            teacher = info["teacher_action"].astype(jnp.float32) if use_teacher else None
-            transition = Rollout(obs_in, raw, log_prob, value, reward, term, trunc, final_value, obs, teacher)
+            kept = tuple(t.step_data(info) for t in terms)
+            transition = Rollout(obs_in, raw, log_prob, value, reward, term, trunc, final_value, obs, kept)
             return (env_state, next_obs.astype(jnp.float32), ep_ret, ep_len, ep), transition
 
         carry0 = (state.env_state, state.obs, state.episode_return, state.episode_length, ep0)
@@ -203,32 +198,21 @@ def make_train(
         return state, traj, ep
 
     def sgd_step(
-        carry: tuple, batches: tuple[PPOBatch, DemoBatch | None], schedule: dict[str, jax.Array]
+        carry: tuple, batches: tuple[PPOBatch, tuple[Any, ...]], weights: LossWeights
     ) -> tuple[tuple, Metrics]:
         params, opt_state = carry
-        batch, demo = batches
+        batch, samples = batches
         batch = jax.tree.map(lambda x: jax.lax.with_sharding_constraint(x, batch_sharding), batch)
+        batch = batch._replace(term_samples=samples)
         grad_fn = jax.value_and_grad(ppo_loss, has_aux=True)
-        (_, metrics), grads = grad_fn(
-            params,
-            batch,
-            networks,
-            clip_eps=cfg.clip_eps,
-            vf_coef=cfg.vf_coef,
-            ent_coef=cfg.ent_coef,
-            clip_value_eps=clip_value,
-            normalize_advantage=cfg.normalize_advantage,
-            demo=demo,
-            **smooth_kwargs,
-            **schedule,
-        )
+        (_, metrics), grads = grad_fn(params, batch, networks, settings, terms, weights)
         updates, opt_state = optimizer.update(grads, opt_state, params)
         params = optax.apply_updates(params, updates)
         metrics["grad_norm"] = optax.tree.norm(grads)
         return (params, opt_state), metrics
 
     def update(
-        state: TrainingState, env_params: Any, demo: DemoBatch | None = None
+        state: TrainingState, env_params: Any, inputs: tuple[Any, ...]
     ) -> tuple[TrainingState, Metrics]:
         key, key_rollout, key_sgd = jax.random.split(state.key, 3)
         state, traj, ep = rollout(state, key_rollout, env_params)
@@ -245,46 +229,34 @@ def make_train(
             cfg.gamma,
             cfg.gae_lambda,
         )
-        next_obs = next_mask = perturbed = None
-        if use_temporal:  # obs_{t+1} of the same episode (after an end it is the next episode's reset)
-            last_obs = normalise(state.normalizer, state.obs)
-            next_obs = jnp.concatenate([traj.obs[1:], last_obs[None]], axis=0)
-            next_mask = 1.0 - jnp.maximum(traj.termination, traj.truncation)
-        if use_spatial:  # a stream of its own: the other draws stay as without it
-            noise = jax.random.normal(jax.random.fold_in(key_sgd, 2), traj.obs.shape, traj.obs.dtype)
-            perturbed = traj.obs + cfg.smooth_spatial_std * noise
-        # [T, N, ...] -> env-major [N * T, ...] so that the sharded env axis stays the leading block.
-        data = PPOBatch(
-            traj.obs,
-            traj.raw_action,
-            traj.log_prob,
-            traj.value,
-            advantages,
-            targets,
-            traj.teacher_action,
-            next_obs,
-            next_mask,
-            perturbed,
-        )
-        schedule = loss_schedule(state.update_step)
-        data = jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1).reshape((n_batch,) + x.shape[2:]), data)
-        demo_batches = None  # [epochs, minibatches, mb_size] pairs, normalised as the rollout's observations
-        if demo is not None:
-            shape = (cfg.epochs, cfg.minibatches, mb_size)
-            demo_batches = demos_lib.sample_minibatches(
-                key_sgd, demo, shape, partial(normalise, state.normalizer)
+        last_obs = normalise(state.normalizer, state.obs)
+        term_data = tuple(
+            t.transition_data(
+                TermContext(traj.obs, traj.termination, traj.truncation, last_obs, kept, key_sgd)
             )
+            for t, kept in zip(terms, traj.term_data, strict=True)
+        )
+        # [T, N, ...] -> env-major [N * T, ...] so that the sharded env axis stays the leading block.
+        data = PPOBatch(traj.obs, traj.raw_action, traj.log_prob, traj.value, advantages, targets, term_data)
+        weights = loss_weights(state.update_step)
+        data = jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1).reshape((n_batch,) + x.shape[2:]), data)
+        # per-minibatch samples of the terms' inputs [epochs, minibatches, mb_size, ...]
+        shape = (cfg.epochs, cfg.minibatches, mb_size)
+        samples = tuple(
+            t.samples(key_sgd, x, shape, partial(normalise, state.normalizer))
+            for t, x in zip(terms, inputs, strict=True)
+        )
 
         def epoch(carry: tuple, xs: tuple[jax.Array, Any]) -> tuple[tuple, Metrics]:
-            key, demo_epoch = xs
+            key, samples_epoch = xs
             perm = shuffle.permutation(key, n_batch)  # = jax.random.permutation, faster
             shuffled = jax.tree.map(
                 lambda x: jnp.take(x, perm, axis=0).reshape((cfg.minibatches, mb_size) + x.shape[1:]), data
             )
-            return jax.lax.scan(lambda c, b: sgd_step(c, b, schedule), carry, (shuffled, demo_epoch))
+            return jax.lax.scan(lambda c, b: sgd_step(c, b, weights), carry, (shuffled, samples_epoch))
 
         (params, opt_state), metrics = jax.lax.scan(
-            epoch, (state.params, state.opt_state), (jax.random.split(key_sgd, cfg.epochs), demo_batches)
+            epoch, (state.params, state.opt_state), (jax.random.split(key_sgd, cfg.epochs), samples)
         )
         normalizer = state.normalizer
         if cfg.normalize_observations:
@@ -303,10 +275,10 @@ def make_train(
         return state, {**metrics, **{f"ep_{k}": v for k, v in ep.items()}}
 
     def period_one(
-        state: TrainingState, env_params: Any, demo: DemoBatch | None = None
+        state: TrainingState, env_params: Any, inputs: tuple[Any, ...]
     ) -> tuple[TrainingState, Metrics]:
         state, metrics = jax.lax.scan(
-            lambda s, _: update(s, env_params, demo), state, None, length=ppo_config.updates_per_period(cfg)
+            lambda s, _: update(s, env_params, inputs), state, None, length=ppo_config.updates_per_period(cfg)
         )
         out = {k: jnp.mean(v) for k, v in metrics.items() if not k.startswith("ep_")}
         ep = {k[3:]: jnp.sum(v) for k, v in metrics.items() if k.startswith("ep_")}
@@ -330,10 +302,10 @@ def make_train(
         return jax.vmap(init_one, in_axes=(0, 0, None))(keys, params, env_params)
 
     def period_all(
-        state: TrainingState, env_params: Any, demo: DemoBatch | None = None
+        state: TrainingState, env_params: Any, inputs: tuple[Any, ...]
     ) -> tuple[TrainingState, Metrics]:
         traces[0] += 1  # Python side effect: runs only while tracing
-        return jax.vmap(period_one, in_axes=(0, None, None))(state, env_params, demo)
+        return jax.vmap(period_one, in_axes=(0, None, None))(state, env_params, inputs)
 
     # Shardings: env-axis leaves [S, N, ...] split over devices on axis 1; everything else replicated.
     replicated = sharding.replicated(mesh)
@@ -356,15 +328,29 @@ def make_train(
         in_shardings=(replicated, replicated),
         out_shardings=state_shardings,
     )
-    period = jax.jit(
+    period_jit = jax.jit(
         period_all,
-        in_shardings=(state_shardings, replicated, replicated)[: 2 if demo_data is None else 3],
+        in_shardings=(state_shardings, replicated, replicated),
         out_shardings=(state_shardings, replicated),
         donate_argnums=0,
     )
-    if demo_data is not None:
-        period = demos_lib.bind_demos(period, demo_data, replicated)
+    period = BoundPeriod(period_jit, put_inputs(terms, replicated))
     return Trainer(init, period, networks, mesh, state_shardings, lambda: traces[0])
+
+
+class BoundPeriod:
+    """``period(state, env_params)``: the compiled period with the loss terms' inputs bound (arrays put on
+    the devices once, arguments of its program rather than constants); ``lower`` as a jitted function's."""
+
+    def __init__(self, jitted: Any, inputs: tuple[Any, ...]) -> None:
+        self.jitted, self.inputs = jitted, inputs
+
+    def __call__(self, state: TrainingState, env_params: Any) -> tuple[TrainingState, Metrics]:
+        return self.jitted(state, env_params, self.inputs)
+
+    def lower(self, state: Any, env_params: Any) -> Any:
+        """``jax.jit(...).lower`` of the period at these arguments."""
+        return self.jitted.lower(state, env_params, self.inputs)
 
 
 def seed_keys(key: jax.Array, num_seeds: int) -> jax.Array:

@@ -58,7 +58,7 @@ class Rollout(NamedTuple):
     truncation: jax.Array  # []
     final_value: jax.Array  # [] V(final_obs), used where the episode ended
     raw_obs: jax.Array  # [O] unnormalised observation (for the running statistics)
-    teacher_action: jax.Array | None = None  # [A] the env's teacher action at obs (behaviour cloning only)
+    term_data: tuple[Any, ...] = ()  # what each loss term keeps of the step's info (``LossTerm.step_data``)
 
 
 class Trainer(NamedTuple):

@@ -104,23 +104,6 @@ def sample_table_states(
     return jnp.concatenate([sampled, fixed], axis=1)
 
 
-def weighted_airspeed(
-    u01: jnp.ndarray,
-    v_low_fps: jnp.ndarray | float,
-    v_high_fps: jnp.ndarray | float,
-    v_split_fps: float,
-    weight_above: float,
-) -> jnp.ndarray:
-    """Airspeed from one U(0, 1) draw: uniform on [v_low, v_split] and on [v_split, v_high], the upper band
-    ``weight_above`` times as dense per ft/s (the inverse of that piecewise-uniform distribution)."""
-    split = jnp.clip(v_split_fps, v_low_fps, v_high_fps)
-    below, above = split - v_low_fps, weight_above * (v_high_fps - split)
-    p_below = below / jnp.maximum(below + above, 1e-9)
-    v_lo_band = v_low_fps + below * u01 / jnp.maximum(p_below, 1e-9)
-    v_hi_band = split + (v_high_fps - split) * (u01 - p_below) / jnp.maximum(1.0 - p_below, 1e-9)
-    return jnp.where(u01 < p_below, v_lo_band, v_hi_band)
-
-
 def sample_alpha_targets(key: jax.Array, n: int) -> jnp.ndarray:
     """Target angles of attack [n], rad, uniform over the paper's alpha_d bounds."""
     lo, hi = ALPHA_TARGET_BOUNDS_RAD

@@ -12,40 +12,33 @@ import numpy as np
 
 from harv_jax.control.hybrid import HybridConfig, make_hybrid
 from harv_jax.control.rl import make_rl_controller
-from harv_jax.env import EnvParams, settings
+from harv_jax.env import EnvParams
 from harv_jax.evaluation.policy_eval import make_eval_batch, make_policy_eval, summarize_eval
 from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo import normalize as obs_norm
-from harv_jax.ppo.config import PPOConfig
 from harv_jax.ppo.networks import postprocess
 from harv_jax.ppo.train import Trainer, TrainingState
-from harv_jax.task.spaces import layout_of_size
 from harv_jax.training import outputs
-from harv_jax.training.in_loop import split_loop
+from harv_jax.training.spec import TrainSpec
 
 #: ``period_hook`` of [`harv_jax.ppo.runner.run_training`][]: (period index, state) -> (row entries, stop).
 PeriodHook = Callable[[int, TrainingState], tuple[dict[str, Any], bool]]
 
 
 def make_eval_hook(
-    trainer: Trainer,
-    cfg: PPOConfig,
-    env_params: EnvParams,
-    env_table: dict[str, Any],
-    target_recovery: float | None,
-    out_dir: Path | None = None,
+    trainer: Trainer, spec: TrainSpec, env_params: EnvParams, out_dir: Path | None = None
 ) -> tuple[PeriodHook | None, str]:
     """The period hook of evaluation during training (``[eval]`` table), or (None, "") when it is off.
 
     Every ``eval.every`` periods (and at the last) every seed's deterministic policy flies the fixed batch of
     ``harv_jax.evaluation.policy_eval`` RL-only (a run trained in the hybrid's loop: in that loop); its
-    recovery fractions and median recovery time go into the period's row. With ``target_recovery`` training
-    stops at the first evaluation where every seed recovers at least that fraction (that period's checkpoint
-    is written). With ``out_dir`` every evaluated period's
-    policies are kept as ``policy/period_<N>/policy_seed<s>.npz`` (a few kB each).
+    recovery fractions and median recovery time go into the period's row. With ``spec.target_recovery``
+    training stops at the first evaluation where every seed recovers at least that fraction (that period's
+    checkpoint is written). With ``out_dir`` every evaluated period's policies are kept as
+    ``policy/period_<N>/policy_seed<s>.npz`` (a few kB each).
     """
-    loop, env_table = split_loop(env_table)
-    ev = settings.eval_settings(settings.split_tables(env_table)[1]["eval"])
+    cfg, loop, target_recovery = spec.ppo, spec.loop, spec.target_recovery
+    ev = spec.env.eval
     if target_recovery is not None and not ev.every:
         ev = dataclasses.replace(ev, every=1)
     if not ev.every:
@@ -57,13 +50,11 @@ def make_eval_hook(
         mean, _ = trainer.networks.policy(params, obs_in)
         return postprocess(mean)
 
-    layout = layout_of_size(trainer.networks.observation_size)
-
     def make_controller(act_obs):
-        return make_rl_controller(act_obs, layout=layout)
+        return make_rl_controller(act_obs)
 
     if loop != "none":  # the policy flies in the loop it trains in
-        hybrid_cfg = HybridConfig(schedule=loop.removeprefix("hybrid:"), observation=layout)
+        hybrid_cfg = HybridConfig(schedule=loop.removeprefix("hybrid:"))
 
         def make_controller(act_obs):
             return make_hybrid(act_obs, hybrid_cfg)

@@ -28,7 +28,6 @@ from harv_jax.env import Env, EnvState
 from harv_jax.env.recovery import with_auto_reset
 from harv_jax.errors import UsageError
 from harv_jax.task.spaces import command_to_action
-from harv_jax.training import time_to_go
 
 #: Loops a policy can be trained in: ``none`` (the plain env) or ``hybrid:<schedule>``.
 LOOPS: tuple[str, ...] = ("none",) + tuple(f"hybrid:{s}" for s in ZETA_SCHEDULES)
@@ -50,17 +49,6 @@ def parse_loop(text: str) -> str:
             f"--in-loop {text!r} is unknown; allowed: {', '.join(LOOPS)} ('hybrid' = 'hybrid:gated')"
         )
     return t
-
-
-#: Keys of a run's env settings that choose a wrapper of the env, not a setting of it.
-WRAPPER_KEYS = (LOOP_KEY, "teacher", "teacher_model", *time_to_go.KEYS)
-
-
-def split_loop(env_table: dict[str, Any]) -> tuple[str, dict[str, Any]]:
-    """(loop, the env settings without the wrapper keys) of a run's env settings (``LOOP_KEY`` absent:
-    ``none``; the teacher's key is read by ``harv_jax.training.teacher``)."""
-    rest = {k: v for k, v in env_table.items() if k not in WRAPPER_KEYS}
-    return parse_loop(env_table.get(LOOP_KEY, "none")), rest
 
 
 @jax.tree_util.register_pytree_node_class

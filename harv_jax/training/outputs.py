@@ -20,13 +20,13 @@ import numpy as np
 
 from harv_jax import atomic
 from harv_jax import policy as policy_api
-from harv_jax.env import EnvParams, settings
+from harv_jax.env import EnvParams
+from harv_jax.env.env_settings import EnvSettings
 from harv_jax.evaluation import seed_stats
 from harv_jax.policy import Policy, make_policy, select_seed
 from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo.config import PPOConfig
 from harv_jax.ppo.train import Trainer, TrainingState
-from harv_jax.training.in_loop import split_loop
 
 #: Episode metrics summarised in ``summary.json`` (first and last period).
 SUMMARY_METRICS = ("episode_return", "episode/recovered", "episode/final_omega_radps", "episode/terminated")
@@ -138,12 +138,11 @@ def export_policies(
     return best
 
 
-def save_spin_bank(out_dir: Path, env_table: dict[str, Any], env_params: EnvParams) -> None:
+def save_spin_bank(out_dir: Path, env: EnvSettings, env_params: EnvParams) -> None:
     """``spin_bank.npz`` in the run folder: the bank's states, deflections and provenance (if spin resets)."""
-    flat, nested = settings.split_tables(split_loop(env_table)[1])
-    if settings.spin_settings(nested["spin"]).reset_prob <= 0:
+    if env.spin.reset_prob <= 0:
         return
-    prov = settings.bank_provenance(settings.env_config(flat), nested)
+    prov = env.provenance()
     atomic.savez(
         out_dir / "spin_bank.npz",
         x_wind=np.asarray(env_params.spin_states),

@@ -5,8 +5,7 @@ A preset file has a ``[ppo]`` table (fields of [`PPOConfig`][harv_jax.ppo.config
 ``[spin]`` and ``[eval]`` tables, returned nested inside the env settings (``harv_jax.env.settings``
 validates them). A preset is named by its file name without ``.toml`` (``smoke``, ``paper-partial``,
 ``paper-full``, ``recovery``) or given as a path to a ``.toml`` file. A relative ``[ppo] demos`` path
-([`harv_jax.training.demos`][]) or ``[env] time_to_go`` file ([`harv_jax.training.time_to_go`][]) is
-taken from the preset file's folder.
+([`harv_jax.training.demos`][]) is taken from the preset file's folder.
 """
 
 from __future__ import annotations
@@ -14,11 +13,14 @@ from __future__ import annotations
 import importlib.resources
 from importlib.resources.abc import Traversable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from harv_jax.errors import UsageError
 from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo.config import PPOConfig
+
+if TYPE_CHECKING:  # the preset files are read without jax (the command-line help does)
+    from harv_jax.training.spec import TrainSpec
 
 #: Folder of the preset files (package data: ``pyproject.toml`` [tool.setuptools.package-data]).
 PRESET_DIR: Traversable = importlib.resources.files("harv_jax.training") / "presets"
@@ -26,8 +28,6 @@ PRESET_DIR: Traversable = importlib.resources.files("harv_jax.training") / "pres
 NESTED_TABLES = ("reward", "randomization", "spin", "eval")
 #: Name of the preset used when none is given.
 DEFAULT_PRESET = "teacher"
-#: The env key of a progress reward's file (= ``harv_jax.training.time_to_go.FILE_KEY``, a jax module).
-TIME_TO_GO_KEY = "time_to_go"
 
 
 def _preset_files() -> dict[str, Traversable]:
@@ -70,8 +70,9 @@ def load_preset(name: str, check_env: bool = True) -> tuple[PPOConfig, dict[str,
 
     Args:
         name: a shipped preset's name or a path ending in ``.toml``.
-        check_env: also validate the env settings (``harv_jax.env.settings.check_env_settings``; imports
-            jax). False reads the ``[ppo]`` table's values only (the command-line help does).
+        check_env: also validate the env settings and the wrapper keys
+            ([`check_env_table`][harv_jax.training.spec.check_env_table]; imports jax). False reads
+            the ``[ppo]`` table's values only (the command-line help does).
 
     Returns:
         (validated PPOConfig, env settings: the ``[env]`` table with the nested tables inside).
@@ -89,26 +90,40 @@ def load_preset(name: str, check_env: bool = True) -> tuple[PPOConfig, dict[str,
 
         cfg = cfg.replace(demos=resolve_demos_path(cfg.demos, Path(str(path)).parent))
     env = dict(tables.get("env", {}))
-    if isinstance(env.get(TIME_TO_GO_KEY), str):  # the preset folder's, as [ppo] demos
-        from harv_jax.training.demos import resolve_demos_path
-
-        env[TIME_TO_GO_KEY] = resolve_demos_path(env[TIME_TO_GO_KEY], Path(str(path)).parent)
     for table in NESTED_TABLES:  # stored inside the env settings (checkpoints keep them for --resume)
         if table in tables:
             env[table] = dict(tables[table])
-    if check_env:
-        from harv_jax.env.settings import check_env_settings
-        from harv_jax.training.in_loop import split_loop
+    if check_env:  # every table and the wrapper keys' rules (those with [ppo] settings: in the spec)
+        from harv_jax.training.spec import check_env_table
 
         try:
-            check_env_settings(split_loop(env)[1])
+            check_env_table(env)
         except UsageError as e:
             raise UsageError(f"preset {path.name}: {e}") from None
     return cfg, env
 
 
-def build_config(preset: str, overrides: dict[str, Any]) -> tuple[PPOConfig, dict[str, Any]]:
-    """Preset + command-line overrides (None: not given) -> (validated PPOConfig, env settings)."""
-    cfg, env_table = load_preset(preset)
-    changes = {k: v for k, v in overrides.items() if v is not None}
-    return ppo_config.from_dict(changes, base=cfg, source="command line"), env_table
+def load_spec(
+    preset: str | None = None,
+    overrides: dict[str, Any] | None = None,
+    in_loop: str | None = None,
+    aircraft: str | None = None,
+    init_policy: str | None = None,
+    target_recovery: float | None = None,
+) -> TrainSpec:
+    """The [`TrainSpec`][harv_jax.training.spec.TrainSpec] of a preset (None: the default) and the
+    command line: ``overrides`` of ``[ppo]`` fields (None values: not given), ``--in-loop``, ``--aircraft``
+    (None: the preset's ``[env] aircraft``, else the registry's default; always recorded),
+    ``--init-policy`` and ``--target-recovery``. UsageError naming the first bad value."""
+    from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT
+    from harv_jax.training.in_loop import LOOP_KEY, parse_loop
+    from harv_jax.training.spec import TrainSpec
+
+    name = preset or DEFAULT_PRESET
+    cfg, env_table = load_preset(name)
+    changes = {k: v for k, v in (overrides or {}).items() if v is not None}
+    cfg = ppo_config.from_dict(changes, base=cfg, source="command line")
+    if in_loop is not None:
+        env_table = {**env_table, LOOP_KEY: parse_loop(in_loop)}
+    env_table = {**env_table, "aircraft": aircraft or env_table.get("aircraft", DEFAULT_AIRCRAFT)}
+    return TrainSpec.from_settings(name, cfg, env_table, init_policy, target_recovery)

@@ -15,34 +15,25 @@ from typing import Any, NamedTuple
 from harv_jax.errors import UsageError
 from harv_jax.ppo import checkpoint
 from harv_jax.ppo import config as ppo_config
-from harv_jax.ppo.config import PPOConfig
+from harv_jax.training.spec import TrainSpec
 
 
 class ResumePlan(NamedTuple):
-    """How ``--resume DIR`` continues: from a checkpoint (``from_checkpoint``) or from period 0."""
+    """How ``--resume DIR`` continues: from a checkpoint (``from_checkpoint``) or from period 0.
 
-    cfg: PPOConfig
-    env_table: dict[str, Any]
+    Attributes:
+        spec: the run's stored spec (from the checkpoint or ``config.json``).
+        from_checkpoint: whether a checkpoint holds the state to continue from.
+        period: the periods done.
+        env_steps: the env steps per seed done.
+        messages: lines to show (skipped damaged checkpoints, where the run resumes).
+    """
+
+    spec: TrainSpec
     from_checkpoint: bool
     period: int
     env_steps: int
-    init_policy: str | None
     messages: tuple[str, ...]
-    demos_sha256: str | None = None
-
-
-def _checked_env(env_table: Any, source: str) -> dict[str, Any]:
-    """A run's stored env settings, validated (``harv_jax.env.settings``); UsageError naming ``source``."""
-    from harv_jax.env.settings import check_env_settings
-    from harv_jax.training.in_loop import split_loop
-
-    if not isinstance(env_table, dict):
-        raise UsageError(f"{source}: the stored env settings {env_table!r} are not a table")
-    try:
-        check_env_settings(split_loop(env_table)[1])
-    except UsageError as e:
-        raise UsageError(f"{source}: {e}") from None
-    return dict(env_table)
 
 
 def resume_plan(run_dir: Path) -> ResumePlan:
@@ -58,9 +49,17 @@ def resume_plan(run_dir: Path) -> ResumePlan:
         ]
         period, steps = int(choice.payload["period"]), int(choice.payload["env_steps"])
         messages.append(f"resuming from period {period} (env steps {steps:,}) of {choice.path}")
-        cfg = ppo_config.from_dict(json.loads(choice.payload["config"]), source=choice.path.name)
-        env_table = _checked_env(json.loads(choice.payload["env_config"]), choice.path.name)
-        return ResumePlan(cfg, env_table, True, period, steps, None, tuple(messages), _demos_sha256(run_dir))
+        source = choice.path.name
+        cfg = ppo_config.from_dict(json.loads(choice.payload["config"]), source=source)
+        env_table = json.loads(choice.payload["env_config"])
+        record = _record(run_dir) or {}
+        try:  # the preset and target the run was started with (config.json); the state: the checkpoint's
+            spec = TrainSpec.from_settings(
+                str(record.get("preset", "?")), cfg, env_table, None, _target(record), _demos_sha256(record)
+            )
+        except UsageError as e:
+            raise UsageError(f"{source}: {e}") from None
+        return ResumePlan(spec, True, period, steps, tuple(messages))
     record_path = run_dir / "config.json"
     if not record_path.is_file():
         raise UsageError(
@@ -68,12 +67,7 @@ def resume_plan(run_dir: Path) -> ResumePlan:
             "not a harv-jax train run folder; start a new run with --out"
         )
     try:
-        record = json.loads(record_path.read_text())
-        cfg = ppo_config.from_dict(record["ppo"], source=str(record_path))
-        env_table = _checked_env(record.get("env", {}), str(record_path))
-        init_policy = record.get("init_policy")
-        if init_policy is not None and not isinstance(init_policy, str):
-            raise TypeError("init_policy")
+        spec = TrainSpec.from_record(json.loads(record_path.read_text()), str(record_path))
     except UsageError:
         raise
     except (ValueError, KeyError, TypeError, AttributeError, OSError) as e:
@@ -85,13 +79,26 @@ def resume_plan(run_dir: Path) -> ResumePlan:
         f"no checkpoint in {ckpt_dir} (the run stopped before its first one): restarting it from "
         "period 0 with the configuration in its config.json"
     )
-    return ResumePlan(cfg, env_table, False, 0, 0, init_policy, (msg,), _demos_sha256(run_dir))
+    return ResumePlan(spec, False, 0, 0, (msg,))
 
 
-def _demos_sha256(run_dir: Path) -> str | None:
-    """The SHA-256 of the demonstrations recorded in ``run_dir/config.json`` (None: none recorded)."""
+def _record(run_dir: Path) -> dict[str, Any] | None:
+    """``run_dir/config.json`` as a dict, or None if it is missing or unreadable."""
     try:
-        digest = json.loads((run_dir / "config.json").read_text())["demos"]["sha256"]
-    except (OSError, ValueError, KeyError, TypeError):
+        record = json.loads((run_dir / "config.json").read_text())
+    except (OSError, ValueError):
         return None
+    return record if isinstance(record, dict) else None
+
+
+def _target(record: dict[str, Any]) -> float | None:
+    """The recorded ``--target-recovery`` (None: none)."""
+    t = record.get("target_recovery")
+    return float(t) if isinstance(t, int | float) and not isinstance(t, bool) else None
+
+
+def _demos_sha256(record: dict[str, Any]) -> str | None:
+    """The SHA-256 of the recorded demonstrations (None: none recorded)."""
+    demos = record.get("demos")
+    digest = demos.get("sha256") if isinstance(demos, dict) else None
     return digest if isinstance(digest, str) else None

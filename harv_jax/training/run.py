@@ -9,11 +9,14 @@ from __future__ import annotations
 import math
 import shlex
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from harv_jax.errors import UsageError
+
+if TYPE_CHECKING:
+    from harv_jax.training.spec import TrainSpec
 
 
 def _fmt(row: dict[str, Any], key: str) -> str:
@@ -80,79 +83,50 @@ def resume_command(out: str | Path) -> str:
 
 
 def run_train(
-    preset: str | None,
-    overrides: dict[str, Any],
-    out: Path | None,
-    resume: Path | None,
-    force: bool,
-    init_policy: str | None = None,
-    target_recovery: float | None = None,
+    spec: TrainSpec | None,
+    out: Path | None = None,
+    force: bool = False,
     watchdog_s: float | None = None,
-    in_loop: str | None = None,
-    aircraft: str | None = None,
+    resume: Path | None = None,
 ) -> dict[str, Any]:
-    """Validate, build, train, write outputs; returns a summary dict. Raises UsageError on bad input.
+    """Build, train and write the outputs of a run; returns its summary dict. UsageError on bad input.
 
-    ``init_policy``: a policy spec (``shipped:partial``, a ``.npz`` or checkpoint path[@seed]) every seed
-    starts from instead of a random initialization (fine-tuning; recorded in ``config.json``).
-    ``target_recovery``: stop at the first evaluation (``[eval]``) where every seed's RL-only recovery
-    fraction is at least this (evaluation then runs every period unless ``[eval] every`` says otherwise).
-    ``watchdog_s``: wall seconds without a finished period after which the run stops with exit code 3
-    (None: automatic, see `harv_jax.ppo.watchdog`; 0: no watchdog).
-    ``in_loop``: ``hybrid[:schedule]`` trains with the hybrid law inside the env step
-    ([`harv_jax.training.in_loop`][]); recorded in ``config.json`` and in the policy files.
-    ``aircraft``: the env's nominal aircraft, a name of ``harv_jax.aircraft.registry`` (None: the preset's
-    ``[env] aircraft``, else the registry's default); recorded as ``aircraft`` in the env settings.
+    A fresh run trains ``spec`` into ``out`` (``force``: replace a folder harv-jax wrote). ``resume``
+    continues the run in that folder from its stored spec (``spec`` and ``out`` are then None or that
+    folder). ``watchdog_s``: wall seconds without a finished period after which the run stops with exit
+    code 3 (None: automatic, see `harv_jax.ppo.watchdog`; 0: no watchdog).
     """
-    if target_recovery is not None and not (math.isfinite(target_recovery) and 0 < target_recovery <= 1):
-        raise UsageError(f"--target-recovery {target_recovery} must be in (0, 1]")
     from harv_jax import runlock
-    from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT
     from harv_jax.outdir import adopt, check_out_dir, read_paths
     from harv_jax.ppo import checkpoint
     from harv_jax.ppo import config as ppo_config
-    from harv_jax.training import time_to_go
-    from harv_jax.training.in_loop import LOOP_KEY, parse_loop, split_loop
-    from harv_jax.training.presets import DEFAULT_PRESET, build_config
     from harv_jax.training.resume import resume_plan
 
-    check_run_flags(overrides.get("num_periods"), overrides.get("checkpoint_every"), watchdog_s)
+    check_run_flags(None, None, watchdog_s)
     plan = None
-    if (overrides.get("demos") or "").strip():  # from the current directory, recorded absolute
-        from harv_jax.training.demos import resolve_demos_path
-
-        overrides = {**overrides, "demos": resolve_demos_path(overrides["demos"])}
     if resume is not None:
-        given = ["--preset"] if preset is not None else []
-        given += [ppo_config.flag_name(k) for k, v in sorted(overrides.items()) if v is not None]
-        given += ["--init-policy"] if init_policy is not None else []
-        given += ["--in-loop"] if in_loop is not None else []
-        given += ["--aircraft"] if aircraft is not None else []
-        if given:
-            raise UsageError(f"--resume continues the stored configuration; drop {given[0]}")
+        if spec is not None:
+            raise UsageError("--resume continues the stored configuration; give no other settings")
         if out is not None and Path(out).resolve() != Path(resume).resolve():
             raise UsageError(f"--resume writes into its own folder; drop --out {str(out)!r}")
         if not Path(resume).is_dir():
             raise UsageError(f"--resume {str(resume)!r} is not a directory")
         runlock.check_free(resume, "--resume")
         plan = resume_plan(Path(resume))
-        cfg, env_table, init_policy = plan.cfg, plan.env_table, plan.init_policy
+        spec = plan.spec
         out_dir = Path(resume)
         runlock.acquire(out_dir, "--resume")  # refused while another harv-jax process writes there
         checkpoint.remove_stale_tmp(out_dir / "checkpoints")  # left by a save that was killed
         adopt(out_dir, resume_command(out_dir))
     else:
+        if spec is None:
+            raise ValueError("run_train needs a spec or a folder to resume")
         if out is None:
             raise UsageError("--out DIR is required (or --resume DIR)")
-        cfg, env_table = build_config(preset or DEFAULT_PRESET, overrides)
-        check_periods(cfg, overrides.get("num_periods"))
-        if in_loop is not None:
-            env_table = {**env_table, LOOP_KEY: parse_loop(in_loop)}
-        env_table = {**env_table, "aircraft": aircraft or env_table.get("aircraft", DEFAULT_AIRCRAFT)}
-        env_table = time_to_go.pin_file_digest(env_table)  # --resume refuses the file if it changes
-        reads = read_paths(preset, init_policy, overrides.get("demos"), env_table.get(time_to_go.FILE_KEY))
+        preset_file = spec.preset if spec.preset.endswith(".toml") else None
+        reads = read_paths(preset_file, spec.init_policy, spec.ppo.demos)
         check_out_dir(out, force, reads)  # a bad --out fails before the env is built
-    loop = split_loop(env_table)[0]
+    cfg = spec.ppo
 
     import jax
     from rich.console import Console
@@ -168,22 +142,12 @@ def run_train(
     from harv_jax.training.tensorboard import TensorBoardWriter
 
     ppo_config.check_devices(cfg, len(sharding.default_devices()))
-    fresh_init = init_policy if plan is None or not plan.from_checkpoint else None  # before --out is touched
-    setup = build_training(cfg, env_table, fresh_init, plan.demos_sha256 if plan is not None else None)
+    setup = build_training(spec)  # before --out is touched
     env_params, trainer = setup.env_params, setup.trainer
     if resume is None:
         out_dir = prepare_out_dir(out, force, reads, resume_command=resume_command(out))
-        write_run_record(
-            out_dir,
-            preset or DEFAULT_PRESET,
-            cfg,
-            env_table,
-            env_params,
-            init_policy,
-            target_recovery,
-            setup.demos,
-        )
-    hook, eval_desc = make_eval_hook(trainer, cfg, env_params, env_table, target_recovery, out_dir)
+        write_run_record(out_dir, spec, env_params, setup.demos)
+    hook, eval_desc = make_eval_hook(trainer, spec, env_params, out_dir)
     n_periods = ppo_config.num_periods(cfg)
     total = n_periods * ppo_config.steps_per_period(cfg)
     start_steps = plan.env_steps if plan is not None else 0
@@ -240,7 +204,7 @@ def run_train(
                 cfg,
                 run_dir=out_dir,
                 resume=plan is not None and plan.from_checkpoint,
-                env_config=env_table,
+                env_config=spec.env_settings(),
                 progress_fn=on_period,
                 trainer=trainer,
                 init_policy=setup.init_policy,
@@ -259,8 +223,8 @@ def run_train(
             f"harv-jax train: {cfg.num_seeds} seed(s), {cfg.num_envs} envs",
         )
     demos = None if setup.demos is None else setup.demos.record()
-    best = outputs.export_policies(out_dir, result.state, result.trainer, cfg, history, loop, demos)
-    summary = outputs.run_summary(out_dir, history, best, target_recovery)
+    best = outputs.export_policies(out_dir, result.state, result.trainer, cfg, history, spec.loop, demos)
+    summary = outputs.run_summary(out_dir, history, best, spec.target_recovery)
     if demos is not None:
         summary["demos"] = demos
     outputs.write_summary(out_dir / "summary.json", summary)

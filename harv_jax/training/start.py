@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import jax
 
@@ -18,17 +18,18 @@ from harv_jax.env import Env, EnvParams
 from harv_jax.env.episode_metrics import harv_episode_metrics
 from harv_jax.errors import UsageError
 from harv_jax.policy import Policy, resolve_policy
-from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo import normalize as obs_norm
 from harv_jax.ppo.config import PPOConfig
+from harv_jax.ppo.loss_terms import terms_from_config
 from harv_jax.ppo.networks import PPOParams
 from harv_jax.ppo.runner import check_init_policy
 from harv_jax.ppo.train import Trainer, make_train
-from harv_jax.task.spaces import ACTION_SIZE, ObservationLayout
+from harv_jax.task.spaces import ACTION_SIZE, OBSERVATION_SIZE
 from harv_jax.training.demos import RunDemos, load_run_demos
 from harv_jax.training.environment import make_harv_env
 from harv_jax.training.outputs import save_spin_bank
-from harv_jax.training.teacher import TEACHER_KEY
+from harv_jax.training.spec import TrainSpec
+from harv_jax.training.teacher import TEACHER_ACTION_KEY
 
 
 class TrainingSetup(NamedTuple):
@@ -77,60 +78,36 @@ def check_init_sizes(spec: str, pol: Policy, cfg: PPOConfig, observation_size: i
         )
 
 
-def build_training(
-    cfg: PPOConfig, env_table: dict[str, Any], init_policy: str | None = None, demos_sha256: str | None = None
-) -> TrainingSetup:
-    """Env, env parameters and trainer of a run, its initial policy (``init_policy``: a policy spec) and
-    its demonstrations (``cfg.demos``; ``demos_sha256``: the digest the file must have, on ``--resume``).
+def build_training(spec: TrainSpec) -> TrainingSetup:
+    """Env, env parameters and trainer of a run (with the loss terms its PPO config asks for), its initial
+    policy (``spec.init_policy``) and its demonstrations (``spec.ppo.demos``; ``spec.demos_sha256``: the
+    digest the file must have, on ``--resume``).
 
     Raises:
-        UsageError: a bad env setting, an initial policy that does not fit the run's networks, or bad
-            demonstrations ([`load_run_demos`][harv_jax.training.demos.load_run_demos]).
+        UsageError: an initial policy that does not fit the run's networks, or bad demonstrations
+            ([`load_run_demos`][harv_jax.training.demos.load_run_demos]).
     """
+    cfg, init_policy = spec.ppo, spec.init_policy
     pol = None if init_policy is None else resolve_policy(init_policy)  # a bad file fails before the env
-    try:
-        obs_size = ObservationLayout(
-            engage_airspeed=env_table.get("observe_engage_airspeed") is True,
-            tracking_integral=env_table.get("observe_tracking_integral") is True,
-        ).size
-    except ValueError as e:
-        raise UsageError(f"[env] {e}") from None
     if pol is not None:
-        check_init_sizes(init_policy, pol, cfg, obs_size)
-    if (cfg.bc_coef > 0 or cfg.bc_coef_end > 0) and env_table.get(TEACHER_KEY) is None and cfg.demos is None:
-        raise UsageError(
-            f"bc_coef {cfg.bc_coef:g} / bc_coef_end {cfg.bc_coef_end:g} clone a teacher, and this run has "
-            'none; set [env] teacher = "smc-brake" (or another model-based controller), give demonstrations '
-            "(--demos FILE) or set both to 0"
-        )
+        check_init_sizes(init_policy, pol, cfg, OBSERVATION_SIZE)
     demos = None
     if cfg.demos is not None:  # before the env is built: bad demos fail fast
-        demos = load_run_demos(cfg.demos, obs_size, ACTION_SIZE, demos_sha256)
-    env, env_params = make_harv_env(env_table)
+        demos = load_run_demos(cfg.demos, OBSERVATION_SIZE, ACTION_SIZE, spec.demos_sha256)
+    env, env_params = make_harv_env(spec)
     pairs = None if demos is None else (demos.observations, demos.actions)
-    trainer = make_train(env, cfg, env_params, episode_metrics_fn=harv_episode_metrics, demos=pairs)
+    labels = TEACHER_ACTION_KEY if spec.teacher is not None else None
+    terms = terms_from_config(cfg, labels, pairs)
+    trainer = make_train(env, cfg, env_params, episode_metrics_fn=harv_episode_metrics, terms=terms)
     init = None if init_policy is None else load_init_policy(init_policy, trainer, cfg, env_params, pol)
     return TrainingSetup(env, env_params, trainer, init, demos)
 
 
 def write_run_record(
-    out_dir: Path,
-    preset: str,
-    cfg: PPOConfig,
-    env_table: dict[str, Any],
-    env_params: EnvParams,
-    init_policy: str | None = None,
-    target_recovery: float | None = None,
-    demos: RunDemos | None = None,
+    out_dir: Path, spec: TrainSpec, env_params: EnvParams, demos: RunDemos | None = None
 ) -> None:
-    """Write ``config.json`` (preset, PPO config, env settings, initial policy, target, demonstrations)
+    """Write ``config.json`` (the spec: [`TrainSpec.record`][harv_jax.training.spec.TrainSpec.record])
     and the spin bank."""
-    record: dict[str, Any] = {"preset": preset, "ppo": ppo_config.to_dict(cfg), "env": env_table}
-    if init_policy is not None:
-        record["init_policy"] = init_policy
-    if demos is not None:
-        record["demos"] = demos.record()
-    if target_recovery is not None:
-        record["target_recovery"] = target_recovery
+    record = spec.record(None if demos is None else demos.record())
     atomic.write_text(out_dir / "config.json", json.dumps(record, indent=2))
-    save_spin_bank(out_dir, env_table, env_params)
+    save_spin_bank(out_dir, spec.env, env_params)

@@ -28,6 +28,9 @@ from harv_jax.training.in_loop import InLoopState, wrapped_env_functions
 
 #: Key of the teacher's controller name in a run's env settings (absent: no teacher).
 TEACHER_KEY = "teacher"
+#: The key of each step's ``info`` that holds the teacher's normalized action [3] (the labels the behaviour
+#: cloning term of ``harv_jax.ppo.loss_terms`` reads).
+TEACHER_ACTION_KEY = "teacher_action"
 #: Key of the teacher's model aircraft in a run's env settings (absent: ``"episode"``).
 TEACHER_MODEL_KEY = "teacher_model"
 #: Allowed teacher models: the episode's (randomized) aircraft, or the nominal one.
@@ -66,7 +69,7 @@ def make_teacher_env(env: Env, teacher: Controller, name: str, model: str = "epi
         a_teacher = jnp.clip(command_to_action(u_teacher, ac.u_min_rad, ac.u_max_rad), -1.0, 1.0)
         a_teacher = jnp.where(jnp.isfinite(a_teacher), a_teacher, 0.0)
         obs, es_new, reward, terminated, truncated, info = env.step_no_reset(key, es, action, params)
-        info["teacher_action"] = a_teacher.astype(jnp.float32)
+        info[TEACHER_ACTION_KEY] = a_teacher.astype(jnp.float32)
         return obs, InLoopState(env=es_new, ctrl=ctrl), reward, terminated, truncated, info
 
     if model not in TEACHER_MODELS:
