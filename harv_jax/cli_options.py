@@ -155,15 +155,17 @@ def warn_loop_mismatch(names: Sequence[str], policy: str | None, zeta: str) -> N
 
 DISTURBANCES_HELP = (
     "Disturbances between the controllers and the aircraft, a comma list of: noise, delay, gust, model, lag; "
-    "or default (all five at their default levels: noise, delay and gust at the training env's maxima), or "
-    "none (the undisturbed runs). Every controller of one run meets the same noise, gust and aircraft."
+    "or default (noise, delay, model and lag at their default levels, noise and delay at the training env's "
+    "maxima, and moderate turbulence unless --turbulence says otherwise), or none (the undisturbed runs). "
+    "Every controller of one run meets the same noise, gust, turbulence and aircraft."
 )
 
 
 TURBULENCE_HELP = (
     "Dryden turbulence of MIL-F-8785C: none, light, moderate, severe (probability of exceedance 1e-2, "
     "1e-3, 1e-5 at the current altitude) or a sigma in ft/s; every controller of a run meets the same "
-    "white noise, drawn apart from the other disturbances."
+    "white noise, drawn apart from the other disturbances. Default none (moderate with --disturbances "
+    "default)."
 )
 
 
@@ -204,8 +206,8 @@ def disturbance_options(command: Callable[..., Any]) -> Callable[..., Any]:
     """
     keyword = inspect.Parameter.KEYWORD_ONLY
     added = [inspect.Parameter("disturbances", keyword, default=disturbances_option(), annotation=str)]
-    turbulence_option = typer.Option("none", help=TURBULENCE_HELP)
-    added.append(inspect.Parameter("turbulence", keyword, default=turbulence_option, annotation=str))
+    turbulence_option = typer.Option(None, help=TURBULENCE_HELP, show_default=False)
+    added.append(inspect.Parameter("turbulence", keyword, default=turbulence_option, annotation=str | None))
     for name, text in LEVEL_OPTION_HELP.items():
         option = typer.Option(None, parser=real_number, help=text)
         added.append(inspect.Parameter(name, keyword, default=option, annotation=float | None))

@@ -528,6 +528,10 @@ CASES: list[tuple[list[str], str]] = [
     (["robustness", "--disturbances", "gust", "--delay-levels", "0,50"], "not in --disturbances"),
     (["robustness", "--runs", "0"], "--runs"),
     (["robustness", "--controller", "bogus"], "bogus"),
+    (["robustness", "--turbulence-levels", "0,-5"], "--turbulence-levels"),
+    (["robustness", "--turbulence-levels", "0,200"], "from 0 to 100 (ft/s)"),
+    (["robustness", "--disturbances", "gust", "--turbulence-levels", "0,5"], "not in --disturbances"),
+    (["robustness", "--turbulence", "stormy"], "--turbulence 'stormy'"),
     # --- the root
     (["bogus-command"], "bogus-command"),
 ]

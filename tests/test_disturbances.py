@@ -176,7 +176,10 @@ def test_randomize_equals_model_error_one():
 def test_parse_disturbances_levels_and_errors():
     assert parse_disturbances("none").active == ()
     d = parse_disturbances("default")
-    assert d.active == ("noise", "delay", "gust", "model", "lag") and d.delay_steps == 2
+    assert d.active == ("noise", "delay", "model", "lag", "turbulence") and d.delay_steps == 2
+    assert d.turbulence == "moderate" and d.gust_fps == 0.0
+    assert parse_disturbances("default", turbulence="severe").turbulence == "severe"
+    assert parse_disturbances("default", turbulence="none").active == ("noise", "delay", "model", "lag")
     assert parse_disturbances("noise", {"noise": 3.0}).noise_scale == 3.0
     assert parse_disturbances("none", randomize=True).model_error == 1.0
     bad = [

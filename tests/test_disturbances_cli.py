@@ -79,8 +79,11 @@ def test_turbulence_on_mc_and_fly_is_recorded_and_its_wind_written(monkeypatch, 
     assert code == 0, err
     rows = list(csv.DictReader((tmp_path / "t" / "runs.csv").open()))
     assert [r["turbulence"] for r in rows] == ["moderate"] * 3
-    doc = json.loads((tmp_path / "t" / "summary.json").read_text())["disturbances"]
+    summary = json.loads((tmp_path / "t" / "summary.json").read_text())
+    doc = summary["disturbances"]
     assert doc["turbulence"] == "moderate" and doc["active"] == ["turbulence"]
+    assert summary["recovery_criterion"]["kind"].startswith("turbulence")
+    assert summary["recovery_criterion"]["angle_filter_tau_s"] == 1.0
     code, _, err = cli_run(
         monkeypatch, capsys, "fly", "--controller", damper, "--scenario", "random", "--duration", "10.5",
         "--turbulence", "severe", "--out", tmp_path / "fly",
@@ -89,3 +92,19 @@ def test_turbulence_on_mc_and_fly_is_recorded_and_its_wind_written(monkeypatch, 
     rows = list(csv.DictReader((tmp_path / "fly" / "trajectory.csv").open()))
     wind = [[float(r[f"wind_{c}_fps"]) for c in "uvw"] for r in rows]
     assert all(w == w for w in wind[-1]) and max(abs(w[1]) for w in wind) > 1.0  # severe: ~20 ft/s std
+
+
+def test_robustness_sweeps_turbulence_and_names_its_margin(monkeypatch, capsys, tmp_path, damper):
+    """``robustness --disturbances turbulence``: a row per sigma (0: still air), each scored by its own
+    criterion, and the margin in ft/s; ``--turbulence`` is recorded."""
+    code, out, err = cli_run(
+        monkeypatch, capsys, "robustness", "--controller", damper, "--disturbances", "turbulence",
+        "--turbulence-levels", "0,20", "--runs", "3", "--duration", "10.5", "--out", tmp_path / "r",
+    )  # fmt: skip
+    assert code == 0, err
+    doc = json.loads((tmp_path / "r" / "robustness.json").read_text())
+    t = doc["disturbances"]["turbulence"]
+    assert t["unit"] == "ft/s" and t["levels"] == [0.0, 20.0] and doc["turbulence"] == "none"
+    rows = t["controllers"][damper]["rows"]
+    assert [r["level"] for r in rows] == [0.0, 20.0]
+    assert "turbulence margin (ft/s)" in (tmp_path / "r" / "margins.md").read_text()

@@ -296,10 +296,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, help="write the counts as JSON here")
     args = parser.parse_args()
-    commit = subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
-    ).stdout.strip()
-    counts = {"commit": commit, **preset_counts(), **trainer_counts(), **code_counts(), **experiment_counts()}
+
+    def git(*args: str) -> str:
+        return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+
+    head = {
+        "head": git("rev-parse", "--short", "HEAD"),
+        "uncommitted_changes": bool(git("status", "--short")),
+    }
+    counts = {**head, **preset_counts(), **trainer_counts(), **code_counts(), **experiment_counts()}
     text = json.dumps(counts, indent=1)
     if args.out:
         args.out.write_text(text + "\n")

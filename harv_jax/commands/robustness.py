@@ -1,4 +1,5 @@
-"""`harv-jax robustness`: every controller over levels of sensor noise, delay, gust, model error and lag."""
+"""`harv-jax robustness`: every controller over levels of sensor noise, delay, gust, model error, lag and
+Dryden turbulence."""
 
 from __future__ import annotations
 
@@ -31,7 +32,8 @@ def register(app: typer.Typer) -> None:
         policy: str = policy_option(),
         zeta: str = zeta_option(),
         disturbances: str = typer.Option(
-            "noise,delay,gust,model,lag", help="Disturbances to sweep, comma list (the others stay off)."
+            "noise,delay,gust,model,lag,turbulence",
+            help="Disturbances to sweep, comma list (the others stay off).",
         ),
         noise_levels: str = typer.Option(
             None, help=_levels_help("noise", "x the env's noise std", "0,1,2,3,5")
@@ -42,6 +44,16 @@ def register(app: typer.Typer) -> None:
             None, help=_levels_help("model error", "x the randomization ranges", "0,0.5,1,1.5,2")
         ),
         lag_levels: str = typer.Option(None, help=_levels_help("actuator lag", "s", "0,0.03,0.06,0.1,0.2")),
+        turbulence_levels: str = typer.Option(
+            None,
+            help=_levels_help("Dryden turbulence sigma", "ft/s above 2000 ft", "0,2.5,5,7.5,10,15,20")
+            + " 0 is still air; the others are scored by the criterion in turbulence.",
+        ),
+        turbulence: str = typer.Option(
+            "none",
+            help="Dryden turbulence the levels of the other disturbances fly in: none, light, moderate, "
+            "severe or a sigma in ft/s.",
+        ),
         runs: int = typer.Option(256, parser=whole_number, help="Monte Carlo runs per level."),
         seed: int = typer.Option(
             0, parser=whole_number, help="Monte Carlo seed (the same runs at every level)."
@@ -61,8 +73,8 @@ def register(app: typer.Typer) -> None:
         )
         from harv_jax.control.registry import build_controller, parse_controllers
         from harv_jax.errors import UsageError
-        from harv_jax.evaluation.disturbance_spec import DISTURBANCE_NAMES
-        from harv_jax.evaluation.robustness import levels_from_options
+        from harv_jax.evaluation.disturbance_spec import parse_turbulence
+        from harv_jax.evaluation.robustness import SWEEP_NAMES, levels_from_options
         from harv_jax.guards import check_closed_loop_batch, check_seed
 
         names = parse_controllers(controller)
@@ -71,18 +83,20 @@ def register(app: typer.Typer) -> None:
         check_mc_options(runs, ALPHA_TARGET_RAD, duration, chunk)
         check_seed(seed)
         swept = [p.strip() for p in disturbances.split(",") if p.strip()]
-        bad = [p for p in swept if p not in DISTURBANCE_NAMES]
+        bad = [p for p in swept if p not in SWEEP_NAMES]
         if bad or not swept or len(set(swept)) < len(swept):
             raise UsageError(
-                f"--disturbances {disturbances!r}: allowed: a comma list of {', '.join(DISTURBANCE_NAMES)}, "
+                f"--disturbances {disturbances!r}: allowed: a comma list of {', '.join(SWEEP_NAMES)}, "
                 "each once"
             )
+        turbulence = parse_turbulence(turbulence)
         given = {
             "noise": noise_levels,
             "delay": delay_levels,
             "gust": gust_levels,
             "model": model_levels,
             "lag": lag_levels,
+            "turbulence": turbulence_levels,
         }
         for name, text in given.items():
             if text is not None and name not in swept:
@@ -99,7 +113,16 @@ def register(app: typer.Typer) -> None:
 
         out_dir = prepare_out_dir(out, force, read_paths(policy))
         doc = robustness_sweep(
-            ctrls, runs, seed, levels, ALPHA_TARGET_RAD, duration, chunk, typer.echo, aircraft=aircraft_name
+            ctrls,
+            runs,
+            seed,
+            levels,
+            ALPHA_TARGET_RAD,
+            duration,
+            chunk,
+            typer.echo,
+            aircraft=aircraft_name,
+            turbulence=turbulence,
         )
         doc.update(controllers_setting(names, policy, zeta))
         doc["command"] = command_line()

@@ -39,6 +39,7 @@ from harv_jax.dynamics.state import WIND_INDEX, BodyState, from_wind, is_finite,
 from harv_jax.evaluation.metrics import RunMetrics, compute_metrics
 from harv_jax.task.criteria import Envelope, RecoveryCriterion
 from harv_jax.task.spec import DT_S
+from harv_jax.task.turbulent_criterion import TurbulentCriterion
 
 #: ``Trajectory.info`` key of the air's body-axis velocity [3], ft/s (gust and turbulence), with disturbances.
 WIND_INFO_KEY = "wind_body_fps"
@@ -301,7 +302,8 @@ def evaluate(
         max_delay_steps=max_delay_steps,
         model_params=model_params,
     )
-    m, _ = score(res, reference_rad, params, dt_s, criterion, envelope)
+    tparams = None if disturbance is None else disturbance.turbulence
+    m, _ = score(res, reference_rad, params, dt_s, criterion, envelope, tparams)
     traj = jax.tree.map(lambda a: a[::record_every], res.traj)
     return m, traj
 
@@ -313,8 +315,10 @@ def score(
     dt_s: float = DT_S,
     criterion: RecoveryCriterion | None = None,
     envelope: Envelope | None = None,
+    turbulence: turb.TurbulenceParams | None = None,
 ) -> tuple[RunMetrics, jnp.ndarray]:
-    """Metrics of a full-rate ``closed_loop`` result.
+    """Metrics of a full-rate ``closed_loop`` result; with the run's ``turbulence`` they follow the
+    criterion in turbulence (``harv_jax.task.turbulent_criterion``).
 
     Returns:
         (RunMetrics, x_all [n_steps + 1, 10]: the recorded states with the final state appended).
@@ -329,5 +333,6 @@ def score(
         res.nonfinite,
         criterion,
         envelope,
+        None if turbulence is None else TurbulentCriterion(turbulence),
     )
     return m, x_all

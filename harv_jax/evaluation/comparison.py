@@ -25,6 +25,7 @@ from harv_jax.evaluation.paired import REFERENCE_CONTROLLER, paired_vs_smc, time
 from harv_jax.evaluation.summary import COMPARE_COLUMNS, controllers_setting
 from harv_jax.numfmt import fmt_num, write_json
 from harv_jax.task.spec import DT_S, H0_FT
+from harv_jax.task.turbulent_criterion import criterion_record
 
 if TYPE_CHECKING:
     from harv_jax.aircraft.params import AircraftParams
@@ -195,6 +196,7 @@ def compare(
         "dt_s": DT_S,
         "fixed_state": fixed_state,
         "disturbances": (disturbances or DisturbanceSpec()).as_dict(),
+        "recovery_criterion": criterion_record((disturbances or DisturbanceSpec()).turbulence != "none"),
         "aircraft": aircraft_name,
     }
     vs_smc = add_vs_smc(rows, duration_s)

@@ -13,9 +13,11 @@
 intensity (light, moderate, severe: MIL-F-8785C's probabilities of exceedance 1e-2, 1e-3, 1e-5) or of a
 sigma in ft/s, on top of the others; ``none`` (the default) is off.
 
-``default`` is all five at these levels (noise, delay and gust at the training env's maxima); ``none``
-(the default) is the undisturbed Monte Carlo, bit for bit. Levels are fixed per run (the env draws each
-episode's levels between 0 and its maxima; a robustness figure states one level). The noise and gust
+``default`` is what a fielded controller meets: noise, delay, model error and lag at these levels (noise and
+delay at the training env's maxima) and moderate turbulence (`DEFAULT_TURBULENCE`; ``--turbulence`` sets
+another level, ``--turbulence none`` none); the body-axis gust is not part of it (name ``gust`` to fly it).
+``none`` (the default) is the undisturbed Monte Carlo, bit for bit. Levels are fixed per run (the env draws
+each episode's levels between 0 and its maxima; a robustness figure states one level). The noise and gust
 models and their draws are the env's (``harv_jax.dynamics.disturbances``); every controller of one run
 meets the same noise sequence, gust and aircraft (common random numbers).
 """
@@ -37,6 +39,10 @@ from harv_jax.task.spec import DT_S
 
 #: Disturbance names, in the order of the table above.
 DISTURBANCE_NAMES = ("noise", "delay", "gust", "model", "lag")
+#: The disturbances ``--disturbances default`` turns on (with `DEFAULT_TURBULENCE`).
+DEFAULT_DISTURBANCES = ("noise", "delay", "model", "lag")
+#: The turbulence of ``--disturbances default`` when ``--turbulence`` is not given.
+DEFAULT_TURBULENCE = "moderate"
 #: Default level of each disturbance (the unit of its level option).
 DEFAULT_LEVELS: dict[str, float] = {
     "noise": 1.0,
@@ -190,7 +196,9 @@ def parse_disturbances(
         raise UsageError(f"--disturbances {names!r}: default and none stand alone; allowed: {allowed}")
     if len(set(parts)) < len(parts):
         raise UsageError(f"--disturbances {names!r}: a disturbance is named twice; allowed: {allowed}")
-    on = set(DISTURBANCE_NAMES) if parts == ["default"] else set() if parts == ["none"] else set(parts)
+    on = set(DEFAULT_DISTURBANCES) if parts == ["default"] else set() if parts == ["none"] else set(parts)
+    if parts == ["default"] and turbulence is None:
+        turbulence = DEFAULT_TURBULENCE
     if randomize:
         on.add("model")
     for name, value in given.items():

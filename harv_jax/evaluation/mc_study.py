@@ -22,6 +22,7 @@ from harv_jax.evaluation.disturbance_spec import DisturbanceSpec, describe_distu
 from harv_jax.evaluation.monte_carlo import MCRunOutput
 from harv_jax.numfmt import fmt_num
 from harv_jax.task.spec import DT_S, H0_FT
+from harv_jax.task.turbulent_criterion import criterion_record
 
 if TYPE_CHECKING:
     from harv_jax.aircraft.params import AircraftParams
@@ -113,6 +114,7 @@ def monte_carlo(
         command,
     )
     summary["disturbances"] = spec.as_dict()
+    summary["recovery_criterion"] = criterion_record(spec.turbulence != "none")
     summary["aircraft"] = aircraft_name
     if spec.active:
         say(f"[mc] disturbances: {describe_disturbances(spec)}")

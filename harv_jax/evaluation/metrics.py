@@ -28,6 +28,7 @@ from harv_jax.task.criteria import (
     tracking_errors,
     within_envelope,
 )
+from harv_jax.task.turbulent_criterion import TurbulentCriterion, turbulent_verdict
 
 #: Chatter band: deflection energy above this frequency, Hz.
 CHATTER_CUTOFF_HZ = 5.0
@@ -156,6 +157,7 @@ def compute_metrics(
     nonfinite: jnp.ndarray | bool = False,
     criterion: RecoveryCriterion | None = None,
     envelope: Envelope | None = None,
+    turbulence: TurbulentCriterion | None = None,
 ) -> RunMetrics:
     """All metrics of one run (jittable; vmap for batches).
 
@@ -169,15 +171,22 @@ def compute_metrics(
             ``x_wind`` or ``delta_rad`` set it too.
         criterion: recovery criterion (default ``default_criterion()``).
         envelope: envelope (default ``default_envelope()``).
+        turbulence: the run's turbulence: recovered and the recovery time then follow the criterion in
+            turbulence (``harv_jax.task.turbulent_criterion``); None: the still-air criterion.
     """
     criterion = default_criterion() if criterion is None else criterion
     envelope = default_envelope() if envelope is None else envelope
     n = x_wind.shape[0]
     t = jnp.arange(n) * dt_s
     t_end = (n - 1) * dt_s
-    ok = recovered_mask(x_wind, reference_rad, criterion)
     in_hold = t >= t_end - criterion.hold_s - 1e-9
-    recovered = jnp.all(ok | ~in_hold)
+    if turbulence is None:
+        ok = recovered_mask(x_wind, reference_rad, criterion)
+        recovered = jnp.all(ok | ~in_hold)
+        t_recover = settle_time_s(ok, dt_s)
+    else:
+        verdict = turbulent_verdict(x_wind, reference_rad, criterion, turbulence, dt_s)
+        ok, recovered, t_recover = verdict.ok, verdict.recovered, verdict.t_recover_s
     e = tracking_errors(x_wind, reference_rad)
     e0_sign = jnp.sign(e[:1])
     overshoot = jnp.maximum(0.0, jnp.max(-e0_sign * e, axis=0))
@@ -200,7 +209,7 @@ def compute_metrics(
     return RunMetrics(
         outcome=outcome,
         recovered=recovered & ~nonfinite & ~ground,
-        t_recover_s=jnp.where(recovered, settle_time_s(ok, dt_s), jnp.nan),
+        t_recover_s=jnp.where(recovered, t_recover, jnp.nan),
         t_recover_alpha_s=settle_time_s(alpha_recovered_mask(x_wind, reference_rad, criterion), dt_s),
         overshoot_rad=overshoot,
         altitude_loss_ft=h_ft(x_wind[0]) - jnp.min(h_ft(x_wind)),

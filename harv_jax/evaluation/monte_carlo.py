@@ -85,7 +85,8 @@ def _one_run(
         max_delay_steps=run.max_delay_steps,
         model_params=run.model_params,
     )
-    m, x_all = score(res, reference_rad, params, dt_s)
+    tparams = None if run.disturbance is None else run.disturbance.turbulence
+    m, x_all = score(res, reference_rad, params, dt_s, turbulence=tparams)
     n_term = max(1, int(round(TERMINAL_WINDOW_S / dt_s)))
     term = jnp.mean(tracking_errors(x_all[-n_term:], reference_rad), axis=0)
     hist = x_all[:-1:record_every][:, jnp.array(TRACKED_INDEX)]

@@ -23,7 +23,9 @@ from harv_jax.evaluation.disturbance_spec import (
     DISTURBANCE_NAMES,
     LEVEL_OPTIONS,
     MAX_LEVELS,
+    MAX_TURBULENCE_FPS,
     DisturbanceSpec,
+    parse_turbulence,
 )
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
@@ -37,7 +39,14 @@ SWEEP_LEVELS: dict[str, tuple[float, ...]] = {
     "gust": (0.0, 2.5, 5.0, 10.0, 20.0, 30.0),
     "model": (0.0, 0.5, 1.0, 1.5, 2.0),
     "lag": (0.0, 0.03, 0.06, 0.1, 0.2),
+    "turbulence": (0.0, 2.5, 5.0, 7.5, 10.0, 15.0, 20.0),
 }
+#: What a sweep can vary: the disturbances and the Dryden turbulence's sigma (ft/s at every altitude above
+#: 2000 ft; 0: still air, scored by the still-air criterion, any other level by the criterion in turbulence).
+SWEEP_NAMES = (*DISTURBANCE_NAMES, "turbulence")
+#: Option and unit of each swept name.
+SWEEP_OPTIONS: dict[str, tuple[str, str]] = {**LEVEL_OPTIONS, "turbulence": ("--turbulence", "ft/s")}
+_MAX_SWEEP = {**MAX_LEVELS, "turbulence": MAX_TURBULENCE_FPS}
 #: Recovered fraction a level must reach to count inside the margin.
 MARGIN_RECOVERY = 0.99
 _FIELD = {
@@ -51,16 +60,16 @@ _FIELD = {
 
 def parse_levels(name: str, text: str) -> tuple[float, ...]:
     """Levels of one disturbance from a comma list (UsageError naming a bad one)."""
-    unit = LEVEL_OPTIONS[name][1]
+    unit = SWEEP_OPTIONS[name][1]
     out = []
     for part in str(text).split(","):
         try:
             v = float(part)
         except ValueError:
             raise UsageError(f"--{name}-levels: {part.strip()!r} is not a number ({unit})") from None
-        if not (np.isfinite(v) and 0 <= v <= MAX_LEVELS[name]):
+        if not (np.isfinite(v) and 0 <= v <= _MAX_SWEEP[name]):
             raise UsageError(
-                f"--{name}-levels: {part.strip()!r}; allowed: numbers from 0 to {MAX_LEVELS[name]:g} ({unit})"
+                f"--{name}-levels: {part.strip()!r}; allowed: numbers from 0 to {_MAX_SWEEP[name]:g} ({unit})"
             )
         out.append(v)
     if len(set(out)) < len(out):
@@ -99,6 +108,7 @@ def robustness_sweep(
     chunk: int | None = None,
     progress: Callable[[str], None] | None = None,
     aircraft: str | AircraftParams | None = None,
+    turbulence: str = "none",
 ) -> dict[str, Any]:
     """Fly every controller at every level of every disturbance of ``levels`` (default ``SWEEP_LEVELS``).
 
@@ -113,6 +123,8 @@ def robustness_sweep(
         progress: called with one line per level.
         aircraft: the nominal aircraft, a name of ``harv_jax.aircraft.registry`` or ``AircraftParams``
             (None: the registry's default); recorded by name.
+        turbulence: Dryden turbulence every level of the other disturbances flies in (``--turbulence``;
+            ``none``: still air).
 
     Returns:
         The robustness.json document: per disturbance its levels, per controller a row per level
@@ -128,9 +140,10 @@ def robustness_sweep(
 
     say = progress or (lambda _msg: None)
     levels = dict(SWEEP_LEVELS if levels is None else levels)
-    unknown = [n for n in levels if n not in DISTURBANCE_NAMES]
+    unknown = [n for n in levels if n not in SWEEP_NAMES]
     if unknown:
-        raise ValueError(f"unknown disturbances {unknown}; allowed: {', '.join(DISTURBANCE_NAMES)}")
+        raise ValueError(f"unknown disturbances {unknown}; allowed: {', '.join(SWEEP_NAMES)}")
+    turbulence = parse_turbulence(turbulence)
     record_every = 100
     n_steps = int(round(duration_s / DT_S))
     n_steps -= n_steps % record_every
@@ -147,13 +160,17 @@ def robustness_sweep(
         "margin_recovery": MARGIN_RECOVERY,
         "controllers": list(controllers),
         "disturbances": {},
+        "turbulence": turbulence,
         "devices": [str(d) for d in jax.local_devices()],
         "aircraft": aircraft_name,
     }
     for name, lv in levels.items():
         rows: dict[str, list[dict[str, Any]]] = {c: [] for c in controllers}
         for level in lv:
-            spec = DisturbanceSpec(**{_FIELD[name]: float(level)})
+            if name == "turbulence":
+                spec = DisturbanceSpec(turbulence=parse_turbulence(f"{float(level):g}"))
+            else:
+                spec = DisturbanceSpec(**{_FIELD[name]: float(level)}, turbulence=turbulence)
             inputs = sample_mc_inputs(jax.random.key(seed), runs, nominal, disturbances=spec)
             inputs = with_full_structure(inputs, max_delay)
             line = []
@@ -162,10 +179,10 @@ def robustness_sweep(
                 row = _row(summarize_controller(out, wall, n_steps, run_s))
                 rows[cname].append({"level": float(level), **row})
                 line.append(f"{cname} {100 * row['recovery_rate']:.1f}% TV {row['control_tv_mean_rad']:.1f}")
-            say(f"[robustness] {name} {level:g} {LEVEL_OPTIONS[name][1]}: " + ", ".join(line))
+            say(f"[robustness] {name} {level:g} {SWEEP_OPTIONS[name][1]}: " + ", ".join(line))
         doc["disturbances"][name] = {
-            "option": LEVEL_OPTIONS[name][0],
-            "unit": LEVEL_OPTIONS[name][1],
+            "option": SWEEP_OPTIONS[name][0],
+            "unit": SWEEP_OPTIONS[name][1],
             "levels": [float(v) for v in lv],
             "controllers": {
                 c: {"rows": r, "margin": margin([x["level"] for x in r], [x["recovery_rate"] for x in r])}
@@ -196,5 +213,5 @@ def levels_from_options(
 ) -> dict[str, tuple[float, ...]]:
     """The sweep's levels: the default ones, replaced where a ``--<name>-levels`` list is given, limited to
     ``only`` (default: every disturbance)."""
-    names = list(only) if only else list(DISTURBANCE_NAMES)
+    names = list(only) if only else list(SWEEP_NAMES)
     return {n: parse_levels(n, options[n]) if options.get(n) else SWEEP_LEVELS[n] for n in names}
