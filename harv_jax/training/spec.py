@@ -132,7 +132,9 @@ class TrainSpec:
     ) -> TrainSpec:
         """The spec of a PPO config and an env settings dict that may hold the wrapper keys (``loop``,
         ``teacher``, ``teacher_model``), as a preset's ``[env]`` table or a run's record does."""
-        env = check_env_table(env_table)
+        if not isinstance(env_table, dict):
+            raise UsageError(f"[env] must be a table of settings, got {env_table!r}")
+        env = EnvSettings.from_table({k: v for k, v in env_table.items() if k not in WRAPPER_KEYS})
         if init_policy is not None and not isinstance(init_policy, str):
             raise UsageError(f"init_policy {init_policy!r} must be a policy spec (a string)")
         return cls(
