@@ -174,6 +174,8 @@ def test_bc_needs_an_env_with_teacher_labels():
     cfg = dataclasses.replace(CFG, bc_coef=1.0)
     with pytest.raises(ValueError, match="needs an env that writes a teacher's action labels, or demos"):
         terms_from_config(cfg)
+    with pytest.raises(ValueError, match=r"asks for the loss terms \['bc'\]; pass them"):
+        make_train(ToyEnv(), cfg, TOY_PARAMS)  # without terms it would not clone at all
     with pytest.raises(
         ValueError, match="reads the env's info\\['teacher_action'\\], which this env does not"
     ):

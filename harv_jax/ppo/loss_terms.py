@@ -261,6 +261,19 @@ def put_inputs(terms: Sequence[LossTerm], placement: jax.sharding.Sharding) -> t
     return tuple(jax.tree.map(lambda x: put_global(x, placement), t.inputs()) for t in terms)
 
 
+def config_term_names(cfg: Any) -> tuple[str, ...]:
+    """The names of the loss terms a PPO config's settings ask for (``bc``, ``smooth_temporal``,
+    ``smooth_spatial``), in the order they are added."""
+    names = []
+    if cfg.bc_coef > 0 or cfg.bc_coef_end > 0:
+        names.append(BehaviourCloning.name)
+    if cfg.smooth_temporal_coef > 0:
+        names.append(TemporalSmoothness.name)
+    if cfg.smooth_spatial_coef > 0:
+        names.append(SpatialSmoothness.name)
+    return tuple(names)
+
+
 def terms_from_config(
     cfg: Any, label_key: str | None = None, demos: tuple[Any, Any] | None = None
 ) -> tuple[LossTerm, ...]:

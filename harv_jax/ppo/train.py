@@ -39,7 +39,7 @@ from harv_jax.ppo.acting import (
     episode_metric_names,
 )
 from harv_jax.ppo.config import PPOConfig
-from harv_jax.ppo.loss_terms import LossTerm, TermContext, put_inputs
+from harv_jax.ppo.loss_terms import LossTerm, TermContext, config_term_names, put_inputs
 from harv_jax.ppo.losses import (
     LossWeights,
     PPOBatch,
@@ -112,6 +112,12 @@ def make_train(
     batch_sharding = sharding.batch_sharding(mesh)
 
     terms = tuple(terms)
+    missing = [n for n in config_term_names(cfg) if n not in [t.name for t in terms]]
+    if missing:  # e.g. bc_coef > 0 without a behaviour-cloning term: it would silently not clone
+        raise ValueError(
+            f"the config asks for the loss terms {missing}; pass them: make_train(..., "
+            "terms=harv_jax.ppo.loss_terms.terms_from_config(cfg, ...))"
+        )
     for term in terms:
         term.check(env_info_keys(env, env_params), obs_size, act_size)
     n_updates = ppo_config.total_updates(cfg)
