@@ -41,8 +41,8 @@ Pairs = tuple[tuple[str, Any], ...]
 class EnvSettings:
     """A run's environment settings, validated once: the ``[env]`` fields and the ``[reward]``,
     ``[randomization]``, ``[spin]`` and ``[eval]`` tables, each as the (key, value) pairs that were set, in
-    their order (so that [`table`][harv_jax.env.settings.EnvSettings.table] gives back what was read).
-    Build it with [`from_table`][harv_jax.env.settings.EnvSettings.from_table]."""
+    their order (so that [`table`][harv_jax.env.env_settings.EnvSettings.table] gives back what was read).
+    Build it with [`from_table`][harv_jax.env.env_settings.EnvSettings.from_table]."""
 
     fields: Pairs = ()
     reward: Pairs = ()
