@@ -2,8 +2,9 @@
 
 The file is what ``harv-jax optimal --save-demos`` writes ([`harv_jax.optimal.demos`][], read with its
 validating, pickle-free reader). The pairs (observation, action) of every step of the recovered runs become
-the demonstration set; every SGD step of the PPO update clones a minibatch of them (``make_train``'s
-``demos``) with the ``bc_coef`` schedule, besides the online teacher's labels if the env has a teacher.
+the demonstration set; every SGD step of the PPO update clones a minibatch of them (the behaviour-cloning
+loss term, ``harv_jax.ppo.loss_terms.BehaviourCloning``) with the ``bc_coef`` schedule, besides the online
+teacher's labels if the env has a teacher.
 
 A relative ``--demos`` path is taken from the current directory, a relative ``[ppo] demos`` path from the
 preset file's folder; the run records the absolute path (``config.json``'s ``ppo.demos``), and the file's
