@@ -28,7 +28,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import shlex
 import sys
 import time
@@ -54,6 +53,7 @@ from harv_jax.control.rl import make_rl_controller
 from harv_jax.control.smc import SMCConfig, SMCGains, default_gains, make_smc
 from harv_jax.evaluation.closed_loop import closed_loop, score
 from harv_jax.evaluation.monte_carlo import MCInputs, sample_mc_inputs
+from harv_jax.optimal.outputs import cpu_model
 from harv_jax.policy import resolve_policy
 from harv_jax.task.criteria import OUTCOME_NAMES
 from harv_jax.task.spec import ALPHA_TARGET_RAD, BETA_TARGET_RAD, DT_S, H0_FT, MU_TARGET_RAD
@@ -388,16 +388,6 @@ def table(result: dict[str, Any]) -> str:
 
 
 # ------------------------------------------------------------------------------------------ main
-
-
-def cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def main() -> None:

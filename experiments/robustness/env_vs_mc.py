@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import platform
 import shlex
 import sys
 import time
@@ -45,6 +44,7 @@ from harv_jax.env.recovery import make_env
 from harv_jax.env.termination import TerminationFlags, termination_flags
 from harv_jax.evaluation.closed_loop import closed_loop, score
 from harv_jax.evaluation.mc_inputs import sample_mc_inputs
+from harv_jax.optimal.outputs import cpu_model
 from harv_jax.task.criteria import OUTCOME_NAMES, within_envelope
 from harv_jax.task.spaces import command_to_action
 from harv_jax.task.spec import (
@@ -66,17 +66,6 @@ SCALE = np.array(
     [V_MAX_FPS / 2, 1.0, 1.0, RATE_MAX_RADPS, RATE_MAX_RADPS, RATE_MAX_RADPS, 1.0, 1.0, 1.0, H0_FT]
 )
 _WRAPPED = (WIND_INDEX["mu"], WIND_INDEX["chi"])
-
-
-def cpu_model() -> str:
-    """The CPU's 'model name' from /proc/cpuinfo (the platform's processor name elsewhere)."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def draw_runs(seed: int, n_runs: int, target_alpha_rad: float):

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 from pathlib import Path
 
 import jax
@@ -26,21 +25,12 @@ from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
 from harv_jax.evaluation.mc_inputs import sample_mc_inputs
 from harv_jax.evaluation.monte_carlo import run_mc
 from harv_jax.evaluation.paired import mean_nr_at_run_s
+from harv_jax.optimal.outputs import cpu_model
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 REF = jnp.asarray([ALPHA_TARGET_RAD, 0.0, 0.0])
 N_STEPS = 6000
 LEVELS = ("none", "light", "moderate", "severe")
-
-
-def cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def main() -> None:

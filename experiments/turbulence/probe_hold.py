@@ -27,22 +27,12 @@ from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
 from harv_jax.evaluation.mc_inputs import sample_mc_inputs
 from harv_jax.task.criteria import tracking_errors
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
+from harv_jax.task.turbulent_criterion import lowpass
 
 REF = jnp.asarray([ALPHA_TARGET_RAD, 0.0, 0.0])
 N_STEPS, HOLD = 6000, 1000
 TAUS_S = (1.0, 2.0, 4.0, 8.0)
 LEVELS = ("none", "light", "moderate", "severe")
-
-
-def lowpass(y: jnp.ndarray, tau_s: float) -> jnp.ndarray:
-    """First-order low-pass [T, C] (exact step response of 1 / (1 + tau s) per sample), from y[0]."""
-    a = np.exp(-DT_S / tau_s)
-
-    def step(c, yk):
-        c = a * c + (1.0 - a) * yk
-        return c, c
-
-    return jax.lax.scan(step, y[0], y)[1]
 
 
 def stats(x_all: jnp.ndarray) -> dict[str, jnp.ndarray]:
@@ -58,7 +48,7 @@ def stats(x_all: jnp.ndarray) -> dict[str, jnp.ndarray]:
         "h_mean": jnp.mean(x_all[-HOLD:, 9]),
     }
     for tau in TAUS_S:
-        f = lowpass(sig, tau)[-HOLD:]
+        f = lowpass(sig, tau, DT_S)[-HOLD:]
         out[f"max_abs_f{tau:g}"] = jnp.max(jnp.abs(f[:, :3]), axis=0)
         out[f"omega_max_f{tau:g}"] = jnp.max(jnp.linalg.norm(f[:, 3:], axis=-1))
     return out

@@ -23,6 +23,7 @@ from harv_jax.task.criteria import (
     alpha_recovered_mask,
     default_criterion,
     default_envelope,
+    hold_mask,
     omega_norm_radps,
     recovered_mask,
     tracking_errors,
@@ -176,17 +177,16 @@ def compute_metrics(
     """
     criterion = default_criterion() if criterion is None else criterion
     envelope = default_envelope() if envelope is None else envelope
-    n = x_wind.shape[0]
-    t = jnp.arange(n) * dt_s
-    t_end = (n - 1) * dt_s
-    in_hold = t >= t_end - criterion.hold_s - 1e-9
+    in_hold = hold_mask(x_wind.shape[0], dt_s, criterion.hold_s)
     if turbulence is None:
         ok = recovered_mask(x_wind, reference_rad, criterion)
         recovered = jnp.all(ok | ~in_hold)
         t_recover = settle_time_s(ok, dt_s)
     else:
         verdict = turbulent_verdict(x_wind, reference_rad, criterion, turbulence, dt_s)
-        ok, recovered, t_recover = verdict.ok, verdict.recovered, verdict.t_recover_s
+        ok, recovered = verdict.ok, verdict.recovered
+        # the filtered channels' settle time less the filter's delay (NaN stays NaN)
+        t_recover = jnp.maximum(settle_time_s(ok, dt_s) - turbulence.angle_filter_tau_s, 0.0)
     e = tracking_errors(x_wind, reference_rad)
     e0_sign = jnp.sign(e[:1])
     overshoot = jnp.maximum(0.0, jnp.max(-e0_sign * e, axis=0))

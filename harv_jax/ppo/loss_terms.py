@@ -144,7 +144,10 @@ class BehaviourCloning(LossTerm):
         demos: tuple[Any, Any] | None = None,
     ) -> None:
         if label_key is None and demos is None:
-            raise ValueError("behaviour cloning needs action labels from the env or demonstrations")
+            raise ValueError(
+                f"behaviour cloning (bc_coef {coef_start:g} -> {coef_end:g}) needs an env that writes a "
+                "teacher's action labels, or demos"
+            )
         self.coef_start, self.coef_end, self.label_key = coef_start, coef_end, label_key
         self.demos = None if demos is None else DemoBatch(*(np.asarray(x, np.float32) for x in demos))
 
@@ -284,15 +287,14 @@ def terms_from_config(
     Raises:
         ValueError: behaviour cloning without labels or demonstrations, or demonstrations without it.
     """
+    names = config_term_names(cfg)
     terms: list[LossTerm] = []
-    if cfg.bc_coef > 0 or cfg.bc_coef_end > 0:
-        if label_key is None and demos is None:
-            raise ValueError("bc_coef > 0 needs an env that writes a teacher's action labels, or demos")
+    if BehaviourCloning.name in names:
         terms.append(BehaviourCloning(cfg.bc_coef, cfg.bc_coef_end, label_key, demos))
     elif demos is not None:
         raise ValueError("demos are cloned with weight bc_coef; set bc_coef > 0 or bc_coef_end > 0")
-    if cfg.smooth_temporal_coef > 0:
+    if TemporalSmoothness.name in names:
         terms.append(TemporalSmoothness(cfg.smooth_temporal_coef))
-    if cfg.smooth_spatial_coef > 0:
+    if SpatialSmoothness.name in names:
         terms.append(SpatialSmoothness(cfg.smooth_spatial_coef, cfg.smooth_spatial_std))
     return tuple(terms)

@@ -115,6 +115,12 @@ def default_envelope(h_floor_ft: float = H_FLOOR_FT, dtype=None) -> Envelope:
     )
 
 
+def hold_mask(n_samples: int, dt_s: float | jnp.ndarray, hold_s: jnp.ndarray) -> jnp.ndarray:
+    """Bool [n_samples]: the samples (t_k = k dt_s) inside the last ``hold_s`` of the run."""
+    t = jnp.arange(n_samples) * dt_s
+    return t >= (n_samples - 1) * dt_s - hold_s - 1e-9
+
+
 def tracking_errors(x_wind: jnp.ndarray, reference_rad: jnp.ndarray) -> jnp.ndarray:
     """[..., 3] errors [alpha - alpha_d, beta - beta_d, wrap(mu - mu_d)], rad (x [..., 10], ref [..., 3]).
 

@@ -40,8 +40,8 @@ import numpy as np
 from flax import struct
 
 from harv_jax.dynamics import turbulence as turb
-from harv_jax.dynamics.state import omega_radps
-from harv_jax.task.criteria import RecoveryCriterion, tracking_errors
+from harv_jax.dynamics.state import h_ft, omega_radps, vt_fps
+from harv_jax.task.criteria import RecoveryCriterion, hold_mask, tracking_errors
 from harv_jax.task.spec import (
     RECOVERY_ALPHA_TOL_RAD,
     RECOVERY_BETA_TOL_RAD,
@@ -121,13 +121,11 @@ class TurbulentVerdict(struct.PyTreeNode):
     Attributes:
         ok: [T] every filtered channel inside its band at that sample.
         recovered: the bias and excursion tests over the hold window both pass.
-        t_recover_s: the recovery time, s (NaN if the last sample is outside a band).
         margins: [4] the margins used (alpha, beta, mu rad; omega rad/s).
     """
 
     ok: jnp.ndarray
     recovered: jnp.ndarray
-    t_recover_s: jnp.ndarray
     margins: jnp.ndarray
 
 
@@ -139,14 +137,12 @@ def turbulent_verdict(
     dt_s: float,
 ) -> TurbulentVerdict:
     """The criterion in turbulence on air-relative wind states ``x_wind`` [T, 10] sampled every ``dt_s``."""
-    n = x_wind.shape[0]
-    t = jnp.arange(n) * dt_s
-    in_hold = t >= (n - 1) * dt_s - criterion.hold_s - 1e-9
+    in_hold = hold_mask(x_wind.shape[0], dt_s, criterion.hold_s)
     weight = in_hold.astype(x_wind.dtype) / jnp.sum(in_hold)
     e = tracking_errors(x_wind, reference_rad)
     pqr = omega_radps(x_wind)
-    h_hold = jnp.sum(weight * x_wind[:, 9])
-    v_hold = jnp.sum(weight * x_wind[:, 0])
+    h_hold = jnp.sum(weight * h_ft(x_wind))
+    v_hold = jnp.sum(weight * vt_fps(x_wind))
     m = margins(crit, h_hold, v_hold).astype(x_wind.dtype)
     tol = jnp.stack([criterion.alpha_tol_rad, criterion.beta_tol_rad, criterion.mu_tol_rad])
     mean_e = jnp.sum(weight[:, None] * e, axis=0)
@@ -158,10 +154,7 @@ def turbulent_verdict(
         omega_f < criterion.omega_tol_radps + m[3]
     )
     recovered = no_bias & jnp.all(ok | ~in_hold)
-    last_bad = jnp.max(jnp.where(ok, -1, jnp.arange(n)))
-    t_settle = jnp.maximum((last_bad + 1) * dt_s - crit.angle_filter_tau_s, 0.0)
-    t_recover = jnp.where(ok[-1], t_settle, jnp.nan).astype(x_wind.dtype)
-    return TurbulentVerdict(ok=ok, recovered=recovered, t_recover_s=t_recover, margins=m)
+    return TurbulentVerdict(ok=ok, recovered=recovered, margins=m)
 
 
 def criterion_record(turbulence: bool) -> dict[str, object]:

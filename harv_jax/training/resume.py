@@ -14,7 +14,6 @@ from typing import Any, NamedTuple
 
 from harv_jax.errors import UsageError
 from harv_jax.ppo import checkpoint
-from harv_jax.ppo import config as ppo_config
 from harv_jax.training.spec import TrainSpec
 
 
@@ -49,16 +48,14 @@ def resume_plan(run_dir: Path) -> ResumePlan:
         ]
         period, steps = int(choice.payload["period"]), int(choice.payload["env_steps"])
         messages.append(f"resuming from period {period} (env steps {steps:,}) of {choice.path}")
-        source = choice.path.name
-        cfg = ppo_config.from_dict(json.loads(choice.payload["config"]), source=source)
-        env_table = json.loads(choice.payload["env_config"])
-        record = _record(run_dir) or {}
-        try:  # the preset and target the run was started with (config.json); the state: the checkpoint's
-            spec = TrainSpec.from_settings(
-                str(record.get("preset", "?")), cfg, env_table, None, _target(record), _demos_sha256(record)
-            )
-        except UsageError as e:
-            raise UsageError(f"{source}: {e}") from None
+        # the preset, target and demonstrations the run was started with (config.json); the settings the
+        # checkpoint was written with; the state: the checkpoint's (no initial policy to load)
+        checkpointed = {
+            "ppo": json.loads(choice.payload["config"]),
+            "env": json.loads(choice.payload["env_config"]),
+            "init_policy": None,
+        }
+        spec = TrainSpec.from_record({**(_record(run_dir) or {}), **checkpointed}, choice.path.name)
         return ResumePlan(spec, True, period, steps, tuple(messages))
     record_path = run_dir / "config.json"
     if not record_path.is_file():
@@ -89,16 +86,3 @@ def _record(run_dir: Path) -> dict[str, Any] | None:
     except (OSError, ValueError):
         return None
     return record if isinstance(record, dict) else None
-
-
-def _target(record: dict[str, Any]) -> float | None:
-    """The recorded ``--target-recovery`` (None: none)."""
-    t = record.get("target_recovery")
-    return float(t) if isinstance(t, int | float) and not isinstance(t, bool) else None
-
-
-def _demos_sha256(record: dict[str, Any]) -> str | None:
-    """The SHA-256 of the recorded demonstrations (None: none recorded)."""
-    demos = record.get("demos")
-    digest = demos.get("sha256") if isinstance(demos, dict) else None
-    return digest if isinstance(digest, str) else None

@@ -193,7 +193,7 @@ class TrainSpec:
                 cfg,
                 record.get("env", {}),
                 record.get("init_policy"),
-                target if isinstance(target, int | float) else None,
+                float(target) if isinstance(target, int | float) and not isinstance(target, bool) else None,
                 sha if isinstance(sha, str) else None,
             )
         except UsageError as e:
