@@ -18,6 +18,7 @@ import typer
 
 from harv_jax.control.registry import DEFAULT_ZETA, ControllerOptions, check_options_apply
 from harv_jax.errors import UsageError
+from harv_jax.task.disturbance_table import BY_NAME, LEVEL_NAMES
 from harv_jax.task.spec import ALPHA_MAX_RAD, ALPHA_MIN_RAD, RECOVERY_HOLD_S
 
 POLICY_HELP = (
@@ -154,10 +155,10 @@ def warn_loop_mismatch(names: Sequence[str], policy: str | None, zeta: str) -> N
 
 
 DISTURBANCES_HELP = (
-    "Disturbances between the controllers and the aircraft, a comma list of: noise, delay, gust, model, lag; "
-    "or default (noise, delay, model and lag at their default levels, noise and delay at the training env's "
-    "maxima, and moderate turbulence unless --turbulence says otherwise), or none (the undisturbed runs). "
-    "Every controller of one run meets the same noise, gust, turbulence and aircraft."
+    f"Disturbances between the controllers and the aircraft, a comma list of: {', '.join(LEVEL_NAMES)}; "
+    f"or default ({', '.join(n for n in LEVEL_NAMES if BY_NAME[n].in_default)} at their default levels, "
+    f"and {BY_NAME['turbulence'].default} turbulence unless --turbulence says otherwise), or none (the "
+    "undisturbed runs). Every controller of one run meets the same noise, gust, turbulence and aircraft."
 )
 
 
@@ -177,13 +178,12 @@ def disturbances_option():
 #: The level options every command with ``@disturbance_options`` takes: parameter name -> help. Each is
 #: a number, None (not given: the disturbance's default level) unless set.
 LEVEL_OPTION_HELP = {
-    "noise_scale": "Sensor-noise std, times the env's per-channel maximum (with noise; 1).",
-    "delay_ms": "Command delay, ms (with delay; default 20).",
-    "gust_fps": "Gust std per body axis, ft/s (with gust; default 10).",
+    **{
+        BY_NAME[n].parameter: f"{BY_NAME[n].meaning[0].upper()}{BY_NAME[n].meaning[1:]}; {BY_NAME[n].unit} "
+        f"(with {n}; default {BY_NAME[n].default:g})."
+        for n in LEVEL_NAMES
+    },
     "gust_tau_s": "Gust correlation time, s (with gust; default: per run U(1, 10) s).",
-    "model_error": "Plant aircraft drawn with this multiple of the randomization ranges, controllers built "
-    "on the nominal one (with model; default 1).",
-    "actuator_lag_s": "First-order actuator lag of the plant, s (with lag; default 0.03).",
 }
 
 
@@ -280,26 +280,20 @@ def aircraft_option(command: Callable[..., Any]) -> Callable[..., Any]:
 
 def disturbance_spec_from_cli(
     disturbances: str,
-    noise_scale: float | None = None,
-    delay_ms: float | None = None,
-    gust_fps: float | None = None,
-    gust_tau_s: float | None = None,
-    model_error: float | None = None,
-    actuator_lag_s: float | None = None,
     randomize: bool = False,
     controller_knows_aircraft: bool = False,
     turbulence: str | None = None,
+    gust_tau_s: float | None = None,
+    **levels: float | None,
 ):
-    """The ``DisturbanceSpec`` of the disturbance options (UsageError naming a bad one)."""
+    """The ``DisturbanceSpec`` of the disturbance options (UsageError naming a bad one); ``levels`` by
+    option parameter (``noise_scale``, ``delay_ms``, ...: ``harv_jax.task.disturbance_table``)."""
     from harv_jax.evaluation.disturbance_spec import parse_disturbances
 
-    levels = {
-        "noise": noise_scale,
-        "delay": delay_ms,
-        "gust": gust_fps,
-        "model": model_error,
-        "lag": actuator_lag_s,
-    }
+    unknown = sorted(set(levels) - {BY_NAME[n].parameter for n in LEVEL_NAMES})
+    if unknown:
+        raise ValueError(f"unknown level options {unknown}")
+    levels = {n: levels.get(BY_NAME[n].parameter) for n in LEVEL_NAMES}
     return parse_disturbances(
         disturbances, levels, gust_tau_s, randomize, controller_knows_aircraft, turbulence
     )

@@ -228,7 +228,7 @@ def test_simulate_checks_the_controls_against_the_chosen_aircraft(wide, monkeypa
 
 
 def test_the_spin_bank_records_its_aircraft(heavy):
-    from harv_jax.env.settings import bank_provenance
+    from harv_jax.env.spin_table import bank_provenance
 
     nested = {"spin": {"reset_prob": 0.5}, "randomization": {}}
     default = bank_provenance(EnvConfig(), nested)

@@ -129,6 +129,19 @@ BAD_PRESETS: dict[str, tuple[str | bytes | None, str]] = {
     "rand_noise_length": ("[randomization]\nnoise_std_max = [1.0, 2.0]\n", "must be a list of 8"),
     "rand_delay_fraction": ("[randomization]\ndelay_max_steps = 1.5\n", "delay_max_steps = 1.5 must"),
     "rand_tau_order": ("[randomization]\ngust_tau_min_s = 20.0\n", "randomization.gust_tau_min_s = 20"),
+    "rand_turbulence_name": ('[randomization]\nturbulence = "strong"\n', "randomization.turbulence = 'strong'"),
+    "rand_turbulence_negative": ("[randomization]\nturbulence = -2.0\n", "randomization.turbulence = -2.0"),
+    "rand_turbulence_nan": ("[randomization]\nturbulence = nan\n", "randomization.turbulence = nan"),
+    "rand_turbulence_table": (
+        "[randomization]\nturbulence_wind_20ft_fps = 5.0\n",
+        "unknown [randomization] setting 'turbulence_wind_20ft_fps'",
+    ),
+    "rand_turbulence_no_dr": (
+        '[env]\ndomain_randomization = false\n[randomization]\nturbulence = "light"\n',
+        "needs env.domain_randomization = true",
+    ),
+    "rand_lag_negative": ("[randomization]\nlag_max_s = -0.1\n", "randomization.lag_max_s = -0.1"),
+    "env_turbulence_switch": ("[env]\nturbulence = true\n", "unknown env setting 'turbulence'"),
     # [spin]
     "spin_unknown": ("[spin]\nmix = 0.2\n", "unknown [spin] setting 'mix'"),
     "spin_prob": ("[spin]\nreset_prob = 1.5\n", "spin.reset_prob = 1.5"),
@@ -911,8 +924,9 @@ def test_good_inputs_still_load(bad_policies, bad_checkpoints):
     from harv_jax.policy import resolve_policy
     from harv_jax.training.presets import available_presets, load_preset
 
-    # every [env] number and switch has its range; the aircraft is a name EnvConfig checks (registry)
-    assert set(ENV_RANGES) == {f.name for f in dataclasses.fields(EnvConfig)} - {"aircraft"}
+    # every [env] number and switch has its range; the aircraft is a name EnvConfig checks (registry), the
+    # turbulence switch follows from [randomization] turbulence
+    assert set(ENV_RANGES) == {f.name for f in dataclasses.fields(EnvConfig)} - {"aircraft", "turbulence"}
     for name in available_presets():
         load_preset(name)
     files = sorted((REPO / "experiments").rglob("*.toml"))

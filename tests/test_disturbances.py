@@ -3,21 +3,26 @@ numbers, the noise's statistics, the delay, the gust's air-relative scoring and 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from harv_jax.aircraft import harv
+from harv_jax.cli_options import LEVEL_OPTION_HELP
 from harv_jax.control.base import Controller
 from harv_jax.control.registry import ControllerOptions, build_controller
 from harv_jax.dynamics.disturbances import DEFAULT_NOISE_STD_MAX, DisturbanceParams
+from harv_jax.dynamics.disturbed_step import air_relative
 from harv_jax.dynamics.state import from_wind, to_wind
 from harv_jax.errors import UsageError
-from harv_jax.evaluation.closed_loop import air_relative, closed_loop
+from harv_jax.evaluation.closed_loop import closed_loop
 from harv_jax.evaluation.disturbance_spec import DisturbanceSpec, parse_disturbances
 from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, with_full_structure
 from harv_jax.evaluation.robustness import margin
+from harv_jax.task.disturbance_table import DISTURBANCES, markdown_table
 
 X0 = jnp.array([600.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 25_000.0])
 REF = jnp.array([0.349, 0.0, 0.0])
@@ -277,3 +282,12 @@ def test_a_users_controller_flies_in_the_monte_carlo(tmp_path):
     write_runs_csv(tmp_path / "runs.csv", study.x0_wind, study.outputs, spec)
     rows = list(csv.DictReader((tmp_path / "runs.csv").open()))
     assert len(rows) == 6 and rows[0]["delay_ms"] == "30" and rows[0]["noise_scale"] == "1"
+
+
+def test_the_docs_show_the_declared_disturbance_table():
+    docs = (Path(__file__).resolve().parents[1] / "docs" / "robustness.md").read_text()
+    assert markdown_table() in docs
+    # every numeric level has its CLI option, with the table's default in its help
+    for d in DISTURBANCES:
+        if d.name != "turbulence":
+            assert f"default {d.default:g})" in LEVEL_OPTION_HELP[d.parameter]

@@ -392,3 +392,51 @@ def test_batch_step_matches_vmap_step(fns):
     out_vmap, out_batch = fns.vstep(ks, st, actions, P), batch_step(ks, st, actions, P)
     np.testing.assert_array_equal(out_vmap[3], np.arange(N) % 2 == 0)
     chex.assert_trees_all_close(out_batch, out_vmap, rtol=1e-6, atol=1e-6)
+
+
+def test_turbulence_and_lag_draws_are_their_own():
+    """The env's turbulence and lag: drawn per episode below their maxima from keys of their own (every
+    other draw unchanged), the observation the air data, the paper's env unchanged without them."""
+    from harv_jax.env.env_settings import EnvSettings
+
+    base = {"episode_steps": 50, "domain_randomization": True}
+    plain = EnvSettings.from_table(base)
+    disturbed = EnvSettings.from_table({**base, "randomization": {"turbulence": "severe", "lag_max_s": 0.1}})
+    assert not plain.config.turbulence and disturbed.config.turbulence
+    n = 64
+    ks = jax.random.split(jax.random.key(3), n)
+    out = {}
+    for name, s in (("plain", plain), ("disturbed", disturbed)):
+        env, params = make_env(s.config), s.params()
+        obs, st = jax.vmap(env.reset, in_axes=(0, None))(ks, params)
+        a = jnp.full((n, 3), 0.1, jnp.float32)
+        obs1, st1, *_ = jax.vmap(env.step_no_reset, in_axes=(0, 0, 0, None))(ks, st, a, params)
+        out[name] = (obs, st, obs1, st1)
+    obs_p, st_p, _, _ = out["plain"]
+    obs_d, st_d, obs1_d, st1_d = out["disturbed"]
+    # other draws unchanged: initial state, aircraft mass, noise, gust, delay
+    np.testing.assert_array_equal(np.asarray(st_p.aircraft.uvw_fps), np.asarray(st_d.aircraft.uvw_fps))
+    np.testing.assert_array_equal(
+        np.asarray(st_p.episode.aircraft.mass_slug), np.asarray(st_d.episode.aircraft.mass_slug)
+    )
+    np.testing.assert_array_equal(
+        np.asarray(st_p.disturbance.noise_normals), np.asarray(st_d.disturbance.noise_normals)
+    )
+    np.testing.assert_array_equal(
+        np.asarray(st_p.disturbance.gust_fps), np.asarray(st_d.disturbance.gust_fps)
+    )
+    np.testing.assert_array_equal(np.asarray(st_p.episode.delay_steps), np.asarray(st_d.episode.delay_steps))
+    # the lag and the turbulence: U(0, max) per episode, spread over the range
+    lag = np.asarray(st_d.episode.aircraft.act_tau_s)
+    assert np.all(np.asarray(st_p.episode.aircraft.act_tau_s) == 0)
+    assert lag.min() >= 0 and lag.max() <= 0.1 and lag.max() - lag.min() > 0.05
+    severe = np.asarray(disturbed.params().randomization.turbulence_sigma_table_fps)
+    factor = np.asarray(st_d.episode.turbulence.sigma_table_fps)[:, 5] / severe[5]
+    assert factor.min() >= 0 and factor.max() <= 1 and factor.max() - factor.min() > 0.5
+    np.testing.assert_allclose(
+        np.asarray(st_d.episode.turbulence.span_ft), np.asarray(st_d.episode.aircraft.b)
+    )
+    # the observation is the air data: it differs from the inertial state by the wind
+    assert st_p.disturbance.turbulence is None and st_d.disturbance.turbulence is not None
+    assert not np.array_equal(np.asarray(obs_p[:, :3]), np.asarray(obs_d[:, :3]))
+    assert np.all(np.isfinite(np.asarray(obs1_d))) and np.all(np.isfinite(np.asarray(st1_d.wind)))

@@ -15,14 +15,17 @@ from scipy import integrate
 
 from harv_jax.aircraft import harv
 from harv_jax.dynamics import turbulence as turb
+from harv_jax.dynamics.state import omega_radps
 from harv_jax.evaluation.metrics import compute_metrics
-from harv_jax.task.criteria import default_criterion
+from harv_jax.task.criteria import default_criterion, tracking_errors
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 from harv_jax.task.turbulent_criterion import (
     ANGLE_FILTER_TAU_S,
     RATE_FILTER_TAU_S,
     TurbulentCriterion,
     dryden_fraction,
+    filter_step,
+    inside_bands,
     lowpass,
     margins,
     turbulent_verdict,
@@ -163,3 +166,42 @@ def test_without_turbulence_the_metrics_are_the_still_air_criterions():
     assert not bool(m.recovered)
     m_t = compute_metrics(jnp.asarray(x), jnp.zeros((N - 1, 3)), REF, harv(), DT, turbulence=_crit("light"))
     assert bool(m_t.recovered) and float(m_t.t_recover_s) < 50.0
+
+
+def test_the_per_step_filter_is_the_criterions_lowpass():
+    """``filter_step`` stepped over a run gives ``lowpass``'s filtered channels, and ``inside_bands`` the
+    verdict's per-sample ``ok`` (the env's recovered reward judges each step as the Monte Carlo does)."""
+    from harv_jax.task.turbulent_criterion import (
+        TurbulentCriterion,
+        lowpass,
+        turbulent_verdict,
+    )
+
+    rng = np.random.default_rng(0)
+    n = 1500
+    x = np.zeros((n, 10), np.float32)
+    x[:, 0] = 400.0
+    x[:, 1] = 0.349 + 0.06 * np.sin(np.arange(n) * 0.005) + 0.01 * rng.standard_normal(n)
+    x[:, 2] = 0.01 * rng.standard_normal(n)
+    x[:, 3:6] = 0.1 * rng.standard_normal((n, 3))
+    x[:, 9] = 20000.0
+    x = jnp.asarray(x)
+    ref = jnp.array([0.349, 0.0, 0.0])
+    crit = TurbulentCriterion(turb.turbulence_params("moderate", 37.4))
+    e, pqr = tracking_errors(x, ref), omega_radps(x)
+    f0 = jnp.concatenate([e[0], pqr[0]])
+
+    def step(f, sample):
+        f = filter_step(f, sample[0], sample[1], crit, 0.01)
+        return f, f
+
+    _, fs = jax.lax.scan(step, f0, (e[1:], pqr[1:]))
+    fs = jnp.concatenate([f0[None], fs])
+    np.testing.assert_allclose(np.asarray(fs[:, :3]), np.asarray(lowpass(e, 1.0, 0.01)), atol=1e-6)
+    np.testing.assert_allclose(np.asarray(fs[:, 3:]), np.asarray(lowpass(pqr, 0.25, 0.01)), atol=1e-6)
+    c = default_criterion()
+    v = turbulent_verdict(x, ref, c, crit, 0.01)
+    tol = jnp.stack([c.alpha_tol_rad, c.beta_tol_rad, c.mu_tol_rad, c.omega_tol_radps])
+    ok = jax.vmap(lambda f: inside_bands(f, tol, v.margins))(fs)
+    assert 0 < int(np.sum(np.asarray(ok))) < n  # both verdicts occur in this run
+    np.testing.assert_array_equal(np.asarray(ok), np.asarray(v.ok))

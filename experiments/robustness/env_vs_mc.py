@@ -20,6 +20,13 @@ Per run: whether and at which step the env terminated and by which flags, the Mo
 the two trajectories are apart up to the env's termination (and over the whole run): the largest
 difference of a wind-state component divided by that component's scale (``SCALE``; mu and chi wrapped).
 Writes ``results/env_vs_mc/seed<S>_n<N>.json`` and prints the cross-tabulation.
+
+    python experiments/robustness/env_vs_mc.py --runs 1000 --seed 4099 --disturbances default
+
+flies the same comparison in the Monte Carlo's disturbed world (``make_compare_disturbed``: the env with
+turbulence set to each run's aircraft, levels, disturbance state and keys) and writes
+``results/env_vs_mc/<disturbances>_seed<S>_n<N>.json``: the env's terminations, the trajectories' agreement up
+to them, and the recovered fractions of both flights scored by the Monte Carlo's criterion.
 """
 
 from __future__ import annotations
@@ -38,12 +45,17 @@ import numpy as np
 
 from harv_jax.aircraft.registry import resolve_aircraft
 from harv_jax.control.registry import build_controller
+from harv_jax.dynamics.disturbances import step_normals
+from harv_jax.dynamics.disturbed_step import air_data, disturbance_init, initial_heading, measured
 from harv_jax.dynamics.state import WIND_INDEX, from_wind, to_wind
 from harv_jax.env.config import EnvConfig
+from harv_jax.env.randomize import EpisodeParams
 from harv_jax.env.recovery import make_env
 from harv_jax.env.termination import TerminationFlags, termination_flags
 from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.mc_inputs import sample_mc_inputs
+from harv_jax.evaluation.disturbance_spec import parse_disturbances
+from harv_jax.evaluation.mc_inputs import sample_mc_inputs, with_full_structure
+from harv_jax.evaluation.metrics import compute_metrics
 from harv_jax.optimal.outputs import cpu_model
 from harv_jax.task.criteria import OUTCOME_NAMES, within_envelope
 from harv_jax.task.spaces import command_to_action
@@ -56,6 +68,7 @@ from harv_jax.task.spec import (
     RATE_MAX_RADPS,
     V_MAX_FPS,
 )
+from harv_jax.task.turbulent_criterion import TurbulentCriterion
 
 RESULTS = Path(__file__).parent / "results" / "env_vs_mc"
 FLAGS = TerminationFlags._fields
@@ -159,6 +172,171 @@ def make_compare(controller, env, n_steps: int):
         }
 
     return compare
+
+
+def make_compare_disturbed(controller, env, n_steps: int, max_delay: int):
+    """As ``make_compare``, in a disturbed world: (plant, model, levels, dkey, env_params, x0, key,
+    reference) -> per-run record. The env (turbulence on) is set to the Monte Carlo run's conditions: its
+    episode is the run's plant aircraft and disturbance levels, its disturbance state the run's initial one
+    (``disturbance_init`` on the run's first disturbance key) and each step's key the run's disturbance key
+    of that step; the controller sees the env's measurement (``measured``: air data plus noise) and is
+    built on the run's model aircraft. Both flights are scored by the Monte Carlo's ``score``: the env's
+    whole flight (it flies on after a termination) and the Monte Carlo's."""
+    no_flags = TerminationFlags(*(jnp.asarray(False) for _ in FLAGS))
+
+    def compare(plant, model, levels, dkey, env_params, x0, key, reference):
+        _, state0 = env.reset_to(jax.random.key(0), x0, reference, env_params)
+        body0 = from_wind(x0)
+        dkeys = jax.random.split(dkey, n_steps + 1)
+        delta0 = jnp.zeros((3,), x0.dtype)
+        dist0 = disturbance_init(
+            step_normals(dkeys[0], x0.dtype), levels, delta0, initial_heading(body0), max_delay, dkeys[0]
+        )
+        episode = EpisodeParams(
+            plant,
+            levels.delay_steps,
+            levels.gust_std_fps,
+            levels.gust_tau_s,
+            levels.noise_std,
+            levels.turbulence,
+        )
+        x_air0 = air_data(body0, dist0, levels).x_wind
+        state0 = state0.replace(aircraft=body0, wind=x_air0, disturbance=dist0, episode=episode)
+        cstate0 = controller.init(model).replace(u_prev_rad=delta0)
+
+        def step(carry, keys_k):
+            state, cstate, k_term, flags_term = carry
+            key_k, dkey_k = keys_k
+            x = state.wind
+            u, cstate, _ = controller.apply(
+                cstate, measured(x, state.disturbance, state.episode.levels), reference, key_k
+            )
+            ac = state.episode.aircraft
+            action = jnp.clip(command_to_action(u, ac.u_min_rad, ac.u_max_rad), -1.0, 1.0)
+            _, state, _, terminated, _, info = env.step_no_reset(dkey_k, state, action, env_params)
+            first = terminated & (k_term < 0)
+            k_term = jnp.where(first, state.step, k_term)
+            flags = TerminationFlags(**info["termination"])
+            flags_term = jax.tree.map(lambda new, old: jnp.where(first, new, old), flags, flags_term)
+            return (state, cstate, k_term, flags_term), (x, state.delta_rad)
+
+        keys = jax.random.split(key, n_steps)
+        carry0 = (state0, cstate0, jnp.asarray(-1, jnp.int32), no_flags)
+        (state, _, k_term, flags_term), (xs, deltas) = jax.lax.scan(step, carry0, (keys, dkeys[1:]))
+        x_env = jnp.concatenate([xs, state.wind[None]], axis=0)
+        res = closed_loop(
+            controller,
+            plant,
+            x0,
+            reference,
+            key,
+            n_steps,
+            DT_S,
+            disturbance=levels,
+            disturbance_key=dkey,
+            max_delay_steps=max_delay,
+            model_params=model,
+        )
+        m, x_mc = score(res, reference, plant, DT_S, turbulence=levels.turbulence)
+        tc = None if levels.turbulence is None else TurbulentCriterion(levels.turbulence)
+        m_env = compute_metrics(x_env, deltas, reference, plant, DT_S, False, None, None, tc)
+        n = x_mc.shape[0]
+        outside = ~within_envelope(x_mc, env_params.envelope)
+        k_out = jnp.min(jnp.where(outside, jnp.arange(n), n))
+        diff = jnp.max(wind_difference(x_env, x_mc), axis=-1)
+        upto = jnp.where(k_term >= 0, k_term, n - 1)
+        return {
+            "env_terminated": k_term >= 0,
+            "env_term_step": k_term,
+            "env_term_flags": flags_term._asdict(),
+            "mc_outcome": m.outcome,
+            "mc_recovered": m.recovered,
+            "env_flight_recovered": m_env.recovered,
+            "mc_left_envelope": m.left_envelope,
+            "mc_first_outside_step": jnp.where(k_out < n, k_out, -1),
+            "rel_diff_upto_term": jnp.max(jnp.where(jnp.arange(n) <= upto, diff, 0.0)),
+            "rel_diff_full": jnp.max(diff),
+        }
+
+    return compare
+
+
+def run_disturbed(seed: int, n_runs: int, target_alpha_rad: float, duration_s: float, chunk: int, names: str):
+    """``run`` in the disturbed world of ``--disturbances names`` (the Monte Carlo's draws of seed)."""
+    n_steps = int(round(duration_s / DT_S))
+    _, nominal = resolve_aircraft(None)
+    spec = parse_disturbances(names)
+    inputs = with_full_structure(
+        sample_mc_inputs(jax.random.key(seed), n_runs, nominal, h0_ft=H0_FT, disturbances=spec),
+        spec.delay_steps,
+    )
+    reference = jnp.array([target_alpha_rad, 0.0, 0.0], dtype=inputs.x0_wind.dtype)
+    max_delay = inputs.max_delay_steps
+    env = make_env(
+        EnvConfig(
+            domain_randomization=True,
+            turbulence=inputs.disturbance.turbulence is not None,
+            episode_steps=n_steps,
+            max_delay_steps=max_delay,
+        )
+    )
+    env_params = env.default_params()
+    compare = make_compare_disturbed(build_controller("smc"), env, n_steps, max_delay)
+    fn = jax.jit(jax.vmap(compare, in_axes=(0, 0, 0, 0, None, 0, 0, None)))
+    per = (
+        inputs.params,
+        inputs.model_params,
+        inputs.disturbance,
+        inputs.disturbance_keys,
+        inputs.x0_wind,
+        inputs.keys,
+    )
+    chunk = max(1, min(chunk, n_runs))
+    if n_runs % chunk:
+        raise SystemExit(f"--runs {n_runs} must be a multiple of --chunk {chunk}")
+    outs, t0 = [], time.perf_counter()
+    for i in range(0, n_runs, chunk):
+        p, mdl, lv, dk, x0, k = jax.tree.map(lambda a, i=i: a[i : i + chunk], per)
+        outs.append(jax.device_get(fn(p, mdl, lv, dk, env_params, x0, k, reference)))
+    per_run = jax.tree.map(lambda *xs: np.concatenate(xs), *outs)
+    return {
+        "n_steps": n_steps,
+        "disturbances": spec.as_dict(),
+        "reference_rad": np.asarray(reference).tolist(),
+        "wall_s": {"total": round(time.perf_counter() - t0, 2)},
+        "per_run": per_run,
+    }
+
+
+def summarize_disturbed(per_run: dict) -> dict:
+    """Terminations, trajectory agreement and the recovered fractions of the two flights."""
+    term = np.asarray(per_run["env_terminated"])
+    rec_mc = np.asarray(per_run["mc_recovered"])
+    rec_env = np.asarray(per_run["env_flight_recovered"])
+    d_upto = np.asarray(per_run["rel_diff_upto_term"])
+    kept = ~term
+    return {
+        "runs": int(term.size),
+        "env_terminated": int(term.sum()),
+        "env_terminated_mc_recovered": int(np.sum(term & rec_mc)),
+        "env_termination_flags": {
+            f: int(np.sum(np.asarray(per_run["env_term_flags"][f]) & term)) for f in FLAGS
+        },
+        "mc_left_envelope": int(np.sum(per_run["mc_left_envelope"])),
+        "mc_recovered_share": float(rec_mc.mean()),
+        "env_flight_recovered_share": float(rec_env.mean()),
+        "not_terminated": {
+            "runs": int(kept.sum()),
+            "mc_recovered_share": float(rec_mc[kept].mean()) if kept.any() else None,
+            "env_flight_recovered_share": float(rec_env[kept].mean()) if kept.any() else None,
+            "verdicts_differ": int(np.sum(rec_mc[kept] != rec_env[kept])),
+        },
+        "rel_diff_upto_term": {
+            "max": float(d_upto.max()),
+            "p99": float(np.percentile(d_upto, 99)),
+            "median": float(np.median(d_upto)),
+        },
+    }
 
 
 def _env_flags_any(x_wind: jnp.ndarray, env_params) -> jnp.ndarray:
@@ -348,7 +526,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--duration", type=float, default=60.0, help="s (the Monte Carlo's run length)")
     ap.add_argument("--chunk", type=int, default=250, help="runs per compiled call")
     ap.add_argument("--out", type=Path, default=None, help="JSON path (default results/env_vs_mc/...)")
+    ap.add_argument(
+        "--disturbances", default="none", help="as harv-jax mc (e.g. default: the env with turbulence)"
+    )
     args = ap.parse_args(argv)
+    if args.disturbances != "none":
+        main_disturbed(args, argv)
+        return
     res = run(args.seed, args.runs, args.target_alpha, args.duration, args.chunk)
     per_run = res.pop("per_run")
     summary = summarize(per_run)
@@ -379,6 +563,35 @@ def main(argv: list[str] | None = None) -> None:
     out.write_text(to_json(doc))
     print_table(summary, args.duration)
     print(f"compile {res['wall_s']['compile']} s, run {res['wall_s']['run']} s; wrote {out}")
+
+
+def main_disturbed(args: argparse.Namespace, argv: list[str] | None) -> None:
+    res = run_disturbed(args.seed, args.runs, args.target_alpha, args.duration, args.chunk, args.disturbances)
+    per_run = res.pop("per_run")
+    summary = summarize_disturbed(per_run)
+    doc = {
+        "command": "python " + " ".join(shlex.quote(a) for a in [sys.argv[0], *(argv or sys.argv[1:])]),
+        "seed": args.seed,
+        "runs": args.runs,
+        "duration_s": args.duration,
+        "cpu": cpu_model(),
+        "jax": jax.__version__,
+        **res,
+        "summary": summary,
+        "per_run": {
+            k: (
+                {f: np.asarray(v[f]).tolist() for f in FLAGS}
+                if k == "env_term_flags"
+                else np.asarray(per_run[k]).tolist()
+            )
+            for k, v in per_run.items()
+        },
+    }
+    out = args.out or RESULTS / f"{args.disturbances}_seed{args.seed}_n{args.runs}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(to_json(doc))
+    print(json.dumps(summary, indent=1))
+    print(f"wrote {out}")
 
 
 if __name__ == "__main__":

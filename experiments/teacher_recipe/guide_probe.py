@@ -5,7 +5,7 @@ state and deflections at a uniform time between engagement and the teacher's rec
 developed spins of the ``[spin]`` reset bank, so that with ``[spin] reset_prob = 0.4`` a fifth of the episodes
 start in a spin and a fifth on the way of a teacher's recovery (a start-state curriculum in the spirit of
 jump-start RL, without flying the teacher: every step of an episode is the policy's). This script replaces
-the bank builder of ``harv_jax.env.settings`` for its own process, then runs ``harv-jax train`` with the
+the bank builder of ``harv_jax.env.env_settings`` for its own process, then runs ``harv-jax train`` with the
 arguments given (``--guide-v0-min FPS``, read here: the guide states only from upsets engaged at least that
 fast; default 0):
 
@@ -25,7 +25,7 @@ import numpy as np
 from harv_jax.aircraft import harv
 from harv_jax.cli import main as cli_main
 from harv_jax.control.registry import ControllerOptions, build_controller
-from harv_jax.env import settings
+from harv_jax.env import env_settings
 from harv_jax.evaluation.closed_loop import closed_loop
 from harv_jax.evaluation.monte_carlo import sample_mc_inputs
 from harv_jax.task.criteria import default_criterion, recovered_mask
@@ -57,7 +57,7 @@ def guide_states(v0_min_fps: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     return x[np.arange(N), idx], d[np.arange(N), idx]
 
 
-_SPIN_BANK = settings.build_spin_bank
+_SPIN_BANK = env_settings.build_spin_bank
 
 
 def _with_guide_states(config, nested) -> SpinBank:
@@ -79,7 +79,7 @@ def main() -> None:
         i = args.index("--guide-v0-min")
         V0_MIN_FPS[0] = float(args[i + 1])
         del args[i : i + 2]
-    settings.build_spin_bank = _with_guide_states
+    env_settings.build_spin_bank = _with_guide_states
     sys.argv = ["harv-jax", "train", *args]
     cli_main()
 

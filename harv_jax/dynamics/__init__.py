@@ -1,6 +1,8 @@
 """The flight model: owns the state and its named views (``state``), the atmosphere, the equations of
 motion (``eom``), the actuators, RK4 integration, the one plant step (``plant``: actuator -> RK4 -> wind
-view) and trim (``trim``). Imports only ``aircraft`` and ``units``."""
+view), what lies between a controller and the aircraft (``disturbances``, ``turbulence`` and the one
+disturbed step that flies them, ``disturbed_step``) and trim (``trim``). Imports only ``aircraft`` and
+``units``."""
 
 from harv_jax.dynamics.actuators import actuator_step, clip_command
 from harv_jax.dynamics.eom import body_derivatives, derivatives, forces_moments

@@ -30,6 +30,7 @@ from harv_jax.dynamics.disturbances import (
     DEFAULT_GUST_TAU_S,
     DEFAULT_NOISE_STD_MAX,
 )
+from harv_jax.dynamics.turbulence import POE_ALTITUDES_FT
 from harv_jax.env.reward_params import RewardParams, paper_reward_params
 from harv_jax.task.criteria import Envelope, default_envelope
 from harv_jax.task.scenarios import RESET_HIGH, RESET_LOW
@@ -63,6 +64,11 @@ class EnvConfig:
             drawn in 0..min(RandomizationParams.delay_max_steps, max_delay_steps).
         domain_randomization: master switch. False traces none of the randomization code (nominal
             aircraft, no gust, no noise, no delay) whatever ``RandomizationParams`` says.
+        turbulence: trace the Dryden turbulence (with ``domain_randomization``): the env then flies it
+            and observes, rewards and terminates on the air data (the state relative to the air mass, as
+            the Monte Carlo scores it). Off, the env sees the inertial state (the paper's env, whose gust
+            the aircraft flies but the observation does not see). The settings set it from the
+            ``[randomization]`` table's ``turbulence``; it is not an ``[env]`` key.
         throttle: fixed throttle of the nominal aircraft in [0, 1].
         aircraft: name of the nominal aircraft (``harv_jax.aircraft.registry``; default ``"harv"``).
         h0_ft: default initial altitude, ft (copied into ``EnvParams.h0_ft``).
@@ -79,6 +85,7 @@ class EnvConfig:
     h_floor_ft: float = H_FLOOR_FT
     discount: float = 0.99
     aircraft: str = DEFAULT_AIRCRAFT
+    turbulence: bool = False
 
     def __post_init__(self) -> None:
         if not self.dt_s > 0:
@@ -90,6 +97,8 @@ class EnvConfig:
         if not 0.0 < self.discount <= 1.0:
             raise ValueError(f"discount={self.discount!r} must be in (0, 1]")
         check_aircraft_name(self.aircraft)
+        if self.turbulence and not self.domain_randomization:
+            raise ValueError("turbulence needs domain_randomization")
 
 
 @struct.dataclass
@@ -114,6 +123,12 @@ class RandomizationParams(AircraftRandomization):
         delay_on: actuator command delay.
         delay_max_steps: per-episode delay ~ randint(0, delay_max_steps) steps inclusive (default 2 =
             up to 20 ms at dt 0.01 s), capped at ``EnvConfig.max_delay_steps``.
+        lag_max_s: per-episode first-order actuator lag ~ U(0, this), s (default 0: none).
+        turbulence_sigma_table_fps: [12] the Dryden turbulence's largest sigma at each altitude of
+            ``dynamics.turbulence.POE_ALTITUDES_FT`` (the preset's ``turbulence``: a named intensity or a
+            sigma); each episode flies U(0, 1) times it (default 0: none). Only flown when
+            ``EnvConfig.turbulence`` is on.
+        turbulence_wind_20ft_fps: the same for the low-altitude model's wind at 20 ft, ft/s.
     """
 
     gust_on: jnp.ndarray
@@ -124,6 +139,9 @@ class RandomizationParams(AircraftRandomization):
     noise_std_max: jnp.ndarray
     delay_on: jnp.ndarray
     delay_max_steps: jnp.ndarray
+    lag_max_s: jnp.ndarray
+    turbulence_sigma_table_fps: jnp.ndarray
+    turbulence_wind_20ft_fps: jnp.ndarray
 
 
 def default_randomization_params(enabled: bool = True, dtype=None) -> RandomizationParams:
@@ -145,6 +163,9 @@ def default_randomization_params(enabled: bool = True, dtype=None) -> Randomizat
         noise_std_max=f(DEFAULT_NOISE_STD_MAX),
         delay_on=on,
         delay_max_steps=jnp.asarray(DEFAULT_DELAY_MAX_STEPS, dtype=jnp.int32),
+        lag_max_s=f(0.0),
+        turbulence_sigma_table_fps=f(np.zeros(POE_ALTITUDES_FT.shape)),
+        turbulence_wind_20ft_fps=f(0.0),
     )
 
 

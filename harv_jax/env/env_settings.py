@@ -5,6 +5,7 @@ The tables and their checks are [`harv_jax.env.settings`][]; this is what a trai
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -13,15 +14,15 @@ from harv_jax.env.settings import (
     TABLES,
     EvalSettings,
     SpinSettings,
-    bank_provenance,
-    build_spin_bank,
     check_env_settings,
     env_config,
     env_params,
+    env_turbulence,
     eval_settings,
     spin_settings,
     split_tables,
 )
+from harv_jax.env.spin_table import bank_provenance, build_spin_bank
 
 
 def _frozen(v: Any) -> Any:
@@ -86,8 +87,9 @@ class EnvSettings:
 
     @property
     def config(self) -> EnvConfig:
-        """The static [`EnvConfig`][harv_jax.env.config.EnvConfig]."""
-        return env_config(dict(self.fields))
+        """The static [`EnvConfig`][harv_jax.env.config.EnvConfig] (its turbulence switch from the
+        ``[randomization]`` table)."""
+        return dataclasses.replace(env_config(dict(self.fields)), turbulence=env_turbulence(self._nested()))
 
     @property
     def spin(self) -> SpinSettings:

@@ -14,12 +14,16 @@ Draws (``RandomizationParams`` holds the switches and ranges; defaults documente
 | gust std, correlation time  | U(0, gust_std_max_fps), U(gust_tau_min_s, gust_tau_max_s) |
 | sensor-noise std [8]        | U(0, 1) noise_std_max (one factor per episode)            |
 | actuator delay, steps       | randint(0, delay_max_steps) inclusive, capped             |
+| actuator lag, s             | U(0, lag_max_s) (its own key: `extra_from_uniform`)        |
+| turbulence sigma            | U(0, 1) turbulence table (its own key; with turbulence)   |
 
 The env draws all of these from 16-bit uniforms (``uniform16``: two per PRNG word, resolution 1/65536).
 The aircraft groups and ranges are documented in ``harv_jax.aircraft.randomize``.
 
-The gust, noise and delay models themselves are ``harv_jax.dynamics.disturbances`` (shared with the
-closed-loop evaluation); this module draws their per-episode levels.
+The gust, noise and delay models themselves are ``harv_jax.dynamics.disturbances`` and the turbulence
+``harv_jax.dynamics.turbulence``, flown by ``harv_jax.dynamics.disturbed_step`` (shared with the
+closed-loop evaluation); this module draws their per-episode levels. The lag and the turbulence are drawn
+from a key of their own, so that they change none of the other draws.
 """
 
 from __future__ import annotations
@@ -36,6 +40,8 @@ from harv_jax.aircraft.randomize import (
     uniform16,
 )
 from harv_jax.dynamics import disturbances
+from harv_jax.dynamics.disturbances import DisturbanceParams
+from harv_jax.dynamics.turbulence import TurbulenceParams
 from harv_jax.env.config import RandomizationParams
 from harv_jax.task.spaces import NUM_MEASURED
 
@@ -50,6 +56,7 @@ class EpisodeParams:
         gust_std_fps: stationary gust std per body axis, ft/s (0 = no gust).
         gust_tau_s: gust correlation time, s.
         noise_std: [8] sensor-noise std of [V, alpha, beta, p, q, r, mu, gamma] (ft/s, rad, rad/s).
+        turbulence: the episode's Dryden turbulence, or None (``EnvConfig.turbulence`` off).
     """
 
     aircraft: AircraftParams
@@ -57,6 +64,14 @@ class EpisodeParams:
     gust_std_fps: jnp.ndarray
     gust_tau_s: jnp.ndarray
     noise_std: jnp.ndarray
+    turbulence: TurbulenceParams | None = None
+
+    @property
+    def levels(self) -> DisturbanceParams:
+        """The episode's disturbance levels as the disturbed step reads them."""
+        return DisturbanceParams(
+            self.noise_std, self.delay_steps, self.gust_std_fps, self.gust_tau_s, self.turbulence
+        )
 
 
 def nominal_episode(nominal: AircraftParams, rand: RandomizationParams) -> EpisodeParams:
@@ -122,6 +137,27 @@ def sample_episode(
     """Draw one episode's parameters (see ``episode_from_uniform``; 16-bit uniforms, ``uniform16``)."""
     u01 = uniform16(key, NUM_EPISODE_UNIFORMS, nominal.mass_slug.dtype)
     return episode_from_uniform(u01, nominal, rand, max_delay_steps)
+
+
+#: Number of U(0, 1) draws of ``extra_from_uniform`` (actuator lag 1, turbulence 1), from their own key.
+NUM_EXTRA_UNIFORMS = 2
+#: Folded into a reset's key for the lag and turbulence draws.
+EXTRA_KEY_TAG = 0x4C414754  # "LAGT"
+
+
+def extra_from_uniform(
+    u01: jnp.ndarray, episode: EpisodeParams, rand: RandomizationParams, turbulence: bool
+) -> EpisodeParams:
+    """``episode`` with its actuator lag (U(0, lag_max_s)) and, with ``turbulence`` (static), its
+    turbulence (U(0, 1) times the table) from ``NUM_EXTRA_UNIFORMS`` U(0, 1) draws."""
+    ac = episode.aircraft
+    ac = ac.replace(act_tau_s=(rand.lag_max_s * u01[0]).astype(ac.act_tau_s.dtype))
+    tp = None
+    if turbulence:
+        tp = TurbulenceParams(
+            rand.turbulence_sigma_table_fps * u01[1], rand.turbulence_wind_20ft_fps * u01[1], ac.b
+        )
+    return episode.replace(aircraft=ac, turbulence=tp)
 
 
 #: Box-Muller normals from uniforms (the one implementation: ``dynamics.disturbances``).

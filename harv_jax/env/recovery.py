@@ -6,14 +6,16 @@
     obs, state, reward, done, info = env.step(key, state, action, params)
 
 Observation [11] (physical units, from ``to_wind`` of the true state, plus sensor noise when enabled):
-[V ft/s, alpha, beta, p, q, r, mu, gamma, alpha_d, beta_d, mu_d] (rad, rad/s). NaNs are replaced by 0
+[V ft/s, alpha, beta, p, q, r, mu, gamma, alpha_d, beta_d, mu_d] (rad, rad/s). With turbulence
+(``EnvConfig.turbulence``) the state is taken relative to the air mass (the air data, as the Monte Carlo
+measures and scores it) for the observation, the reward and the terminations alike. NaNs are replaced by 0
 and every component is clipped to the paper's observation box (``task.spaces.OBS_LOW``/``OBS_HIGH``); inside
-the
-envelope the clip only touches noise at the edges. Action [3] in [-1, 1] (clipped), mapped affinely to
+the envelope the clip only touches noise at the edges. Action [3] in [-1, 1] (clipped), mapped affinely to
 [u_min, u_max] per channel (de, da, dr); the actuator model adds rate limits (and the delay).
 
-One step: delayed command -> ``dynamics.plant.plant_step`` (actuator -> RK4 with the body-axis gust ->
-``to_wind``, once) -> terminations, reward terms, observation. Reward: see ``harv_jax.env.reward``.
+One step: ``dynamics.disturbed_step.disturbed_plant_step`` (the Monte Carlo's step: command FIFO ->
+actuator -> RK4 in the gust and turbulence -> the next gust, noise and turbulence from the step's key)
+-> terminations, reward terms, observation. Reward: see ``harv_jax.env.reward``.
 
 Terminations (``done`` and ``info['terminated']``; reward = terminal_reward - sigma_t): see
 ``harv_jax.env.termination``. The time limit ``episode_steps`` is a truncation (``done`` and
@@ -41,8 +43,8 @@ Retraces: pass strongly typed arrays (e.g. ``jnp.full((n, 3), 0.2, jnp.float32)`
 Reset: with probability ``spin_reset_prob`` one of ``spin_states`` (uniform index) plus a uniform
 perturbation, else a uniform draw over the paper's reset bounds at altitude ``h0_ft`` (chi = 0). Target
 alpha_d ~ U(alpha_d_low, alpha_d_high), beta_d, mu_d fixed. Deflections and the delay buffer start at 0
-rad (neutral surfaces; a spin reset starts at that spin state's deflections), the gust in its stationary
-distribution.
+rad (neutral surfaces; a spin reset starts at that spin state's deflections), the gust and the turbulence
+in their stationary distributions.
 """
 
 from __future__ import annotations
@@ -55,13 +57,22 @@ import jax.numpy as jnp
 from flax import struct
 
 from harv_jax.aircraft.aero import wrap_angle_rad
-from harv_jax.dynamics import BodyState, from_wind, is_finite, plant_step
-from harv_jax.dynamics.disturbances import delayed_command, push_command
-from harv_jax.dynamics.state import WIND_INDEX
+from harv_jax.dynamics import BodyState, from_wind, is_finite
+from harv_jax.dynamics.disturbed_step import (
+    AirData,
+    DisturbanceState,
+    air_data,
+    disturbance_init,
+    disturbed_plant_step,
+    initial_heading,
+)
+from harv_jax.dynamics.state import WIND_INDEX, h_ft, omega_radps, vt_fps
 from harv_jax.env import randomize, reward
+from harv_jax.env.auto_reset import with_auto_reset
 from harv_jax.env.config import EnvConfig, EnvParams, default_params
 from harv_jax.env.randomize import EpisodeParams
 from harv_jax.env.termination import termination_flags
+from harv_jax.task.criteria import tracking_errors
 from harv_jax.task.spaces import (
     ACTION_SIZE,
     NUM_MEASURED,
@@ -71,6 +82,7 @@ from harv_jax.task.spaces import (
     command_to_action,
     finish_observation,
 )
+from harv_jax.task.turbulent_criterion import TurbulentCriterion, filter_step, inside_bands, margins
 
 _MU, _CHI = WIND_INDEX["mu"], WIND_INDEX["chi"]
 #: Uniform draws of a reset's initial state: the 8 reset-bound components, the spin index (1), the spin
@@ -79,6 +91,11 @@ _N_RESET_STATE = 8
 _U_SPIN_INDEX = _N_RESET_STATE
 _U_SPIN_PERTURB = slice(_U_SPIN_INDEX + 1, _U_SPIN_INDEX + 1 + 10)
 _U_SPIN_CHOICE = _U_SPIN_PERTURB.stop
+
+
+def _criterion_sample(x_wind: jnp.ndarray, target_rad: jnp.ndarray) -> tuple[jnp.ndarray, jnp.ndarray]:
+    """(tracking errors [3], body rates [3]) of a state: what the criterion in turbulence filters."""
+    return tracking_errors(x_wind, target_rad), omega_radps(x_wind)
 
 
 def _wrap_angles(x_wind: jnp.ndarray) -> jnp.ndarray:
@@ -96,25 +113,27 @@ class EnvState:
 
     Attributes:
         aircraft: singularity-free integration state.
-        wind: [10] wind-axis state of ``aircraft`` (cached: computed once per step).
+        wind: [10] wind-axis state of ``aircraft`` (cached: computed once per step); with turbulence
+            relative to the air mass (the air data).
         delta_rad: [3] actual surface deflections [de, da, dr], rad.
-        cmd_buffer_rad: [max_delay_steps + 1, 3] past commands, newest first, rad.
-        gust_fps: [3] body-axis gust, ft/s.
+        disturbance: the command FIFO, gust, sensor noise and turbulence (``dynamics.disturbed_step``).
         target_rad: [3] [alpha_d, beta_d, mu_d], rad.
         step: int32 steps taken in this episode.
         potential: PBRS potential sigma of the current state.
         episode: this episode's randomized parameters.
+        criterion_filter: [6] with turbulence, the criterion in turbulence's low-passed errors and body
+            rates (``task.turbulent_criterion.filter_step``) for the recovered reward; None without.
     """
 
     aircraft: BodyState
     wind: jnp.ndarray
     delta_rad: jnp.ndarray
-    cmd_buffer_rad: jnp.ndarray
-    gust_fps: jnp.ndarray
+    disturbance: DisturbanceState
     target_rad: jnp.ndarray
     step: jnp.ndarray
     potential: jnp.ndarray
     episode: EpisodeParams
+    criterion_filter: jnp.ndarray | None = None
 
 
 class Env(NamedTuple):
@@ -144,29 +163,6 @@ class Env(NamedTuple):
     action_size: int = ACTION_SIZE
 
 
-def with_auto_reset(step_no_reset: Callable[..., tuple], reset: Callable[..., tuple]) -> Callable[..., tuple]:
-    """``step(key, state, action, params) -> (obs, state, reward, done, info)`` with auto-reset.
-
-    Built from ``step_no_reset`` (-> obs, state, reward, terminated, truncated, info) and ``reset``; the
-    state needs a ``wind`` attribute. When ``done`` the returned obs and state are the new episode's; ``info``
-    gains ``final_obs`` and ``final_state_wind`` of the state the finished episode reached (module docstring).
-    """
-
-    def step(key: jax.Array, state: Any, action: jnp.ndarray, params: Any):
-        k_step, k_reset = jax.random.split(key)
-        del key
-        obs, new_state, rew, terminated, truncated, info = step_no_reset(k_step, state, action, params)
-        done = terminated | truncated
-        obs_reset, state_reset = reset(k_reset, params)
-        info["final_obs"] = obs
-        info["final_state_wind"] = new_state.wind
-        state_out = jax.tree.map(lambda r, s: jnp.where(done, r, s), state_reset, new_state)
-        obs_out = jnp.where(done, obs_reset, obs)
-        return obs_out, state_out, rew, done, info
-
-    return step
-
-
 def make_env(config: EnvConfig | None = None) -> Env:
     """Build the pure reset/step functions for a static config.
 
@@ -178,7 +174,6 @@ def make_env(config: EnvConfig | None = None) -> Env:
     """
     config = config or EnvConfig()
     dt_s = config.dt_s
-    n_buf = config.max_delay_steps + 1
 
     dr = config.domain_randomization
     # Uniform draws consumed per reset: initial state (8), spin index (1), spin perturbation (10), spin
@@ -190,7 +185,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
     n_init_u = _U_SPIN_CHOICE + 1 + 1
     n_normal_u = 2 * ((randomize.NUM_STEP_NORMALS + 1) // 2)
     n_reset_u = n_init_u + ((randomize.NUM_EPISODE_UNIFORMS + n_normal_u) if dr else 0)
-    n_step_u = n_normal_u if dr else 0
+    turbulence = config.turbulence
 
     def _initial_wind(u01: jnp.ndarray, params: EnvParams) -> tuple[jnp.ndarray, jnp.ndarray]:
         """Initial wind-axis state [10] and deflections [3] from ``n_init_u - 1`` U(0, 1) draws."""
@@ -207,10 +202,10 @@ def make_env(config: EnvConfig | None = None) -> Env:
         # canonical angles so that the observation equals to_wind(from_wind(x0))
         return _wrap_angles(x0), delta0
 
-    def _observe(noise8: jnp.ndarray | None, x_wind: jnp.ndarray, target_rad: jnp.ndarray, ep: EpisodeParams):
+    def _observe(dist: DisturbanceState, x_wind: jnp.ndarray, target_rad: jnp.ndarray, ep: EpisodeParams):
         obs = clean_observation(x_wind, target_rad)
-        if noise8 is not None:
-            obs = obs.at[:NUM_MEASURED].add(randomize.sensor_noise(noise8, ep))
+        if dist.noise_normals is not None:
+            obs = obs.at[:NUM_MEASURED].add(randomize.sensor_noise(dist.noise_normals, ep))
         return finish_observation(obs)
 
     def _uniform(key: jax.Array, n: int, params: EnvParams) -> jnp.ndarray:
@@ -219,6 +214,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
 
     def _reset_from_uniform(
         u01: jnp.ndarray,
+        key: jax.Array,
         params: EnvParams,
         x0: jnp.ndarray | None = None,
         target: jnp.ndarray | None = None,
@@ -241,30 +237,37 @@ def make_env(config: EnvConfig | None = None) -> Env:
             ep = randomize.episode_from_uniform(
                 u01[n_init_u : n_init_u + n_ep], params.aircraft, params.randomization, config.max_delay_steps
             )
+            extra_key = jax.random.fold_in(key, randomize.EXTRA_KEY_TAG)
+            extra_u = randomize.uniform16(extra_key, randomize.NUM_EXTRA_UNIFORMS, dtype)
+            ep = randomize.extra_from_uniform(extra_u, ep, params.randomization, turbulence)
             normals = randomize.normals_from_uniform(u01[n_init_u + n_ep :])
-            gust = randomize.gust_init(normals[:3], ep)
-            noise8 = normals[3 : 3 + NUM_MEASURED]
         else:
             ep = randomize.nominal_episode(params.aircraft, params.randomization)
-            gust = jnp.zeros((3,), dtype)
-            noise8 = None
-        obs = _observe(noise8, x0, target, ep)
+            normals = None
+        body0 = from_wind(x0)
+        x0_air = x0
+        dist = disturbance_init(
+            normals, ep.levels, delta0, initial_heading(body0), config.max_delay_steps, key
+        )
+        if turbulence:  # the env sees the air data: relative to the gust and the turbulence
+            x0_air = air_data(body0, dist, ep.levels).x_wind
+        obs = _observe(dist, x0_air, target, ep)
         state = EnvState(
-            aircraft=from_wind(x0),
-            wind=x0,
+            aircraft=body0,
+            wind=x0_air,
             delta_rad=delta0,
-            cmd_buffer_rad=jnp.broadcast_to(delta0, (n_buf, 3)),
-            gust_fps=gust,
+            disturbance=dist,
             target_rad=target,
             step=jnp.zeros((), dtype=jnp.int32),
-            potential=reward.state_potential(x0, target, params.reward),
+            potential=reward.state_potential(x0_air, target, params.reward),
             episode=ep,
+            criterion_filter=jnp.concatenate(_criterion_sample(x0_air, target)) if turbulence else None,
         )
         return obs, state
 
     def reset(key: jax.Array, params: EnvParams) -> tuple[jnp.ndarray, EnvState]:
         """Start an episode: (obs [11], EnvState)."""
-        return _reset_from_uniform(_uniform(key, n_reset_u, params), params)
+        return _reset_from_uniform(_uniform(key, n_reset_u, params), key, params)
 
     def reset_to(
         key: jax.Array, x_wind: jnp.ndarray, target_rad: jnp.ndarray, params: EnvParams
@@ -274,39 +277,49 @@ def make_env(config: EnvConfig | None = None) -> Env:
         Everything else (episode parameters, gust, noise) is drawn as in ``reset``; mu and chi are
         wrapped to (-pi, pi]. For evaluation from fixed initial conditions.
         """
-        return _reset_from_uniform(_uniform(key, n_reset_u, params), params, x_wind, target_rad)
+        return _reset_from_uniform(_uniform(key, n_reset_u, params), key, params, x_wind, target_rad)
 
-    def _step_from_uniform(u01: jnp.ndarray, state: EnvState, action: jnp.ndarray, params: EnvParams):
+    def _step(key: jax.Array, state: EnvState, action: jnp.ndarray, params: EnvParams):
         ep = state.episode
         ac = ep.aircraft
+        levels = ep.levels
         a = jnp.clip(action, -1.0, 1.0)
         cmd = action_to_command(a, ac.u_min_rad, ac.u_max_rad)
-        buffer = push_command(state.cmd_buffer_rad, cmd)
-        body, delta, x = plant_step(
-            state.aircraft, state.delta_rad, delayed_command(buffer, ep.delay_steps), ac, dt_s, state.gust_fps
+        dist = state.disturbance
+        if turbulence:
+            air = air_data(state.aircraft, dist, levels)
+        else:  # the paper's env: the aircraft flies the gust, the env sees the inertial state
+            air = AirData(state.wind, dist.gust_fps, None)
+        ps, dist = disturbed_plant_step(
+            state.aircraft, state.delta_rad, dist, cmd, air, ac, levels, dt_s, key if dr else None
         )
-        if dr:
-            normals = randomize.normals_from_uniform(u01)
-            gust = randomize.gust_step(state.gust_fps, ep, dt_s, normals[:3])
-            noise8 = normals[3 : 3 + NUM_MEASURED]
-        else:
-            gust, noise8 = state.gust_fps, None
+        body, delta, x = ps
+        if turbulence:
+            x = air_data(body, dist, levels).x_wind
         finite = is_finite(body) & jnp.all(jnp.isfinite(x))
         flags = termination_flags(x, finite, params.envelope)
         terminated = flags.any
         t = state.step + 1
         truncated = (t >= config.episode_steps) & ~terminated
-        a_prev = command_to_action(state.cmd_buffer_rad[0], ac.u_min_rad, ac.u_max_rad)
+        a_prev = command_to_action(state.disturbance.cmd_buffer_rad[0], ac.u_min_rad, ac.u_max_rad)
+        filtered, inside = None, None
+        if turbulence:  # the recovered reward judged as the Monte Carlo judges a run in turbulence
+            crit = TurbulentCriterion(ep.turbulence)
+            filtered = filter_step(
+                state.criterion_filter, *_criterion_sample(x, state.target_rad), crit, dt_s
+            )
+            margin = margins(crit, h_ft(x), vt_fps(x)).astype(x.dtype)
+            inside = inside_bands(filtered, params.reward.recovered_tol, margin)
         terms, pot_next = reward.reward_terms(
-            x, state.target_rad, a, state.potential, terminated, params.reward, a_prev
+            x, state.target_rad, a, state.potential, terminated, params.reward, a_prev, inside
         )
-        obs = _observe(noise8, x, state.target_rad, ep)
+        obs = _observe(dist, x, state.target_rad, ep)
         new_state = state.replace(
             aircraft=body,
             wind=x,
             delta_rad=delta,
-            cmd_buffer_rad=buffer,
-            gust_fps=gust,
+            disturbance=dist,
+            criterion_filter=filtered,
             step=t,
             potential=pot_next,
         )
@@ -326,7 +339,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
             (obs [11], state, reward, terminated, truncated, info). On termination the returned state
             is the (possibly non-finite) state that left the envelope.
         """
-        return _step_from_uniform(_uniform(key, n_step_u, params), state, action, params)
+        return _step(key, state, action, params)
 
     step = with_auto_reset(step_no_reset, reset)
 

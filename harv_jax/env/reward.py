@@ -203,6 +203,7 @@ def reward_terms(
     terminated: jnp.ndarray,
     params: RewardParams,
     action_prev: jnp.ndarray | None = None,
+    recovered_inside: jnp.ndarray | None = None,
 ) -> tuple[RewardTerms, jnp.ndarray]:
     """All reward terms of one step and the potential of the new state.
 
@@ -214,6 +215,9 @@ def reward_terms(
         terminated: bool, the step left the envelope (s_{t+1} is absorbing, sigma = 0).
         params: reward weights.
         action_prev: [3] normalized action of the previous step (default: ``action``, no rate penalty).
+        recovered_inside: whether the state counts as recovered for the recovered bonus (the env in
+            turbulence: the criterion in turbulence's filtered bands, ``task.turbulent_criterion``);
+            default: every error and the rate norm below ``recovered_tol``.
 
     Returns:
         (RewardTerms, sigma_{t+1}); sigma_{t+1} is the potential of x_wind (not zeroed on termination;
@@ -241,6 +245,10 @@ def reward_terms(
     r_shaping = shaping(pot_target, potential_prev, params)
     dense = dense_tracking(track_errors, params) * channel_w
     r_recovered = recovered_term(errors, pqr, params)
+    if recovered_inside is not None:
+        r_recovered = jnp.where(
+            recovered_inside, params.recovered_bonus, jnp.zeros_like(params.recovered_bonus)
+        )
     r_rate = action_rate_penalty(action, action if action_prev is None else action_prev, params)
     zero = jnp.zeros_like(r_raw)
     r_terminal = jnp.where(terminated, params.terminal_reward, zero)

@@ -9,7 +9,11 @@ key or a value out of its range raises `UsageError` naming the key and what is a
   lists of 3 (per channel alpha, beta, mu) for ``bonus_width_rad``, ``w_track``, ``track_clip_rad`` and
   of 4 for ``recovered_tol``.
 - ``[randomization]``: any field of [`RandomizationParams`][] (switches and ranges; only read when
-  ``domain_randomization`` is on).
+  ``domain_randomization`` is on), but the turbulence's: ``turbulence`` sets them, a named intensity
+  (light, moderate, severe) or a sigma in ft/s, the largest an episode flies (each flies U(0, 1) times it);
+  it turns the env's turbulence on (``EnvConfig.turbulence``: the env then observes air data) and needs
+  ``domain_randomization``. ``lag_max_s``: the largest first-order actuator lag, s. The disturbances and
+  their keys are the table of ``harv_jax.task.disturbance_table``.
 - ``[spin]``: ``reset_prob`` (probability that an episode starts in a developed spin from the bank),
   ``bank_size``, ``spin_s_min``/``spin_s_max`` (time flown in the spin), ``bank_seed``,
   ``randomize_aircraft`` (draw the bank's aircraft with the mass/inertia/aero ranges).
@@ -30,6 +34,7 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
+from harv_jax.dynamics.turbulence import INTENSITIES, turbulence_params
 from harv_jax.env.config import (
     DEFAULT_GUST_TAU_S,
     DEFAULT_NOISE_STD_MAX,
@@ -42,6 +47,7 @@ from harv_jax.env.config import (
 from harv_jax.env.reward_params import RewardParams, reward_fields
 from harv_jax.errors import UsageError
 from harv_jax.guards import check_seed
+from harv_jax.task.disturbance_table import BY_NAME
 
 #: Nested tables of the env settings and what they hold.
 TABLES = ("reward", "randomization", "spin", "eval")
@@ -77,7 +83,12 @@ RANDOMIZATION_RANGES: dict[str, tuple[float, float]] = {
     "gust_tau_min_s": (0.01, 100.0),
     "gust_tau_max_s": (0.01, 100.0),
     "delay_max_steps": (0.0, 100.0),
+    "lag_max_s": (0.0, BY_NAME["lag"].max_level),
 }
+#: ``[randomization]`` fields that no table sets directly (``turbulence`` sets them).
+_TURBULENCE_FIELDS = ("turbulence_sigma_table_fps", "turbulence_wind_20ft_fps")
+#: ``EnvConfig`` fields the settings derive (not ``[env]`` keys): the turbulence switch.
+_DERIVED_ENV_FIELDS = ("turbulence",)
 
 
 @dataclass(frozen=True)
@@ -197,12 +208,15 @@ _GUST_TAU_DEFAULTS = dict(zip(("gust_tau_min_s", "gust_tau_max_s"), DEFAULT_GUST
 def check_randomization_table(table: dict[str, Any] | None) -> None:
     """Raise UsageError for an unknown key, a non-bool switch or a range outside
     `RANDOMIZATION_RANGES` of a ``[randomization]`` table."""
-    fields = [f.name for f in dataclasses.fields(RandomizationParams)]
+    fields = [f.name for f in dataclasses.fields(RandomizationParams) if f.name not in _TURBULENCE_FIELDS]
+    fields.append("turbulence")
     n_noise = len(DEFAULT_NOISE_STD_MAX)
     for k, v in (table or {}).items():
         if k not in fields:
             raise UsageError(f"unknown [randomization] setting {k!r}; allowed: {', '.join(fields)}")
-        if k.endswith("_on"):
+        if k == "turbulence":
+            turbulence_level(v)
+        elif k.endswith("_on"):
             if not isinstance(v, bool):
                 raise UsageError(f"randomization.{k} = {v!r} must be true or false")
         elif k == "noise_std_max":
@@ -223,11 +237,41 @@ def check_randomization_table(table: dict[str, Any] | None) -> None:
         )
 
 
+def turbulence_level(value: Any) -> str | float | None:
+    """A ``[randomization]`` ``turbulence`` value: an intensity name, a sigma in ft/s (a number >= 0), or
+    None for ``"none"`` and 0 (still air); UsageError naming it and what is allowed otherwise."""
+    top = BY_NAME["turbulence"].max_level
+    if value == "none" or (isinstance(value, int | float) and not isinstance(value, bool) and value == 0):
+        return None
+    if isinstance(value, str) and value in INTENSITIES:
+        return value
+    if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
+        if 0 < value <= top:
+            return float(value)
+    raise UsageError(
+        f"randomization.turbulence = {value!r}: allowed: none, {', '.join(INTENSITIES)}, or a sigma in ft/s "
+        f"from 0 to {top:g}"
+    )
+
+
+def env_turbulence(nested: dict[str, dict[str, Any]]) -> bool:
+    """Whether the ``[randomization]`` table turns the env's turbulence on."""
+    return turbulence_level((nested.get("randomization") or {}).get("turbulence", "none")) is not None
+
+
 def randomization_params(table: dict[str, Any] | None, base: RandomizationParams) -> RandomizationParams:
     """``base`` with the ``[randomization]`` table's values (validated)."""
     check_randomization_table(table)
     changes = {}
     for k, v in (table or {}).items():
+        if k == "turbulence":
+            level = turbulence_level(v)
+            tp = turbulence_params(0.0 if level is None else level, 1.0)
+            changes["turbulence_sigma_table_fps"] = tp.sigma_table_fps.astype(
+                base.turbulence_sigma_table_fps.dtype
+            )
+            changes["turbulence_wind_20ft_fps"] = tp.wind_20ft_fps.astype(base.turbulence_wind_20ft_fps.dtype)
+            continue
         old = getattr(base, k)
         changes[k] = jnp.asarray(v, dtype=old.dtype).reshape(old.shape)
     out = base.replace(**changes)
@@ -255,7 +299,7 @@ def split_tables(env_table: dict[str, Any]) -> tuple[dict[str, Any], dict[str, d
 
 def env_config(flat: dict[str, Any]) -> EnvConfig:
     """Validated EnvConfig from the ``[env]`` table's fields (types and `ENV_RANGES`)."""
-    fields = {f.name: f.default for f in dataclasses.fields(EnvConfig)}
+    fields = {f.name: f.default for f in dataclasses.fields(EnvConfig) if f.name not in _DERIVED_ENV_FIELDS}
     unknown = sorted(set(flat) - set(fields))
     if unknown:
         raise UsageError(
@@ -290,9 +334,14 @@ def check_env_settings(env_table: dict[str, Any]) -> None:
         UsageError: one line naming the first bad key or value and what is allowed.
     """
     flat, nested = split_tables(env_table)
-    env_config(flat)
+    cfg = env_config(flat)
     check_reward_table(nested["reward"])
     check_randomization_table(nested["randomization"])
+    if env_turbulence(nested) and not cfg.domain_randomization:
+        raise UsageError(
+            f"randomization.turbulence = {nested['randomization']['turbulence']!r} needs "
+            "env.domain_randomization = true"
+        )
     spin_settings(nested["spin"])
     eval_settings(nested["eval"])
 
@@ -315,43 +364,3 @@ def env_params(config: EnvConfig, nested: dict[str, dict[str, Any]], spin_bank: 
         raise ValueError("spin.reset_prob > 0 needs a spin bank")
     params = params.replace(spin_reset_prob=jnp.asarray(spin.reset_prob, dtype))
     return strip_weak_type(params)
-
-
-def build_spin_bank(config: EnvConfig, nested: dict[str, dict[str, Any]]) -> Any:
-    """The spin bank of the ``[spin]`` table, or None when spin resets are off."""
-    import jax
-
-    from harv_jax.env.config import default_randomization_params
-    from harv_jax.task.spin_bank import make_spin_bank
-
-    spin = spin_settings(nested.get("spin"))
-    if spin.reset_prob <= 0:
-        return None
-    base = default_params(config)
-    rand = randomization_params(nested.get("randomization"), default_randomization_params(True))
-    if not spin.randomize_aircraft:
-        rand = default_randomization_params(False)
-    return make_spin_bank(
-        jax.random.key(spin.bank_seed),
-        spin.bank_size,
-        base.aircraft,
-        rand,
-        spin.spin_s_min,
-        spin.spin_s_max,
-        config.dt_s,
-        config.h0_ft,
-    )
-
-
-def bank_provenance(config: EnvConfig, nested: dict[str, dict[str, Any]]) -> dict[str, Any]:
-    """What a stored spin bank was made from (for its npz): the ``[spin]`` settings, the nominal aircraft's
-    name (``harv_jax.aircraft.registry``), the step, the start altitude and the ``[randomization]`` table."""
-    spin = spin_settings(nested.get("spin"))
-    return {
-        "spin": dataclasses.asdict(spin),
-        "aircraft": config.aircraft,
-        "dt_s": config.dt_s,
-        "h0_ft": config.h0_ft,
-        "randomization": nested.get("randomization", {}),
-        "made_by": "harv_jax.task.spin_bank.make_spin_bank",
-    }

@@ -34,8 +34,15 @@ from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
 from harv_jax.dynamics import disturbances as dist
 from harv_jax.dynamics import turbulence as turb
+from harv_jax.dynamics.disturbed_step import (
+    air_data,
+    disturbance_init,
+    disturbed_plant_step,
+    initial_heading,
+    measured,
+)
 from harv_jax.dynamics.plant import plant_step
-from harv_jax.dynamics.state import WIND_INDEX, BodyState, from_wind, is_finite, quat_to_dcm, to_wind, vt_fps
+from harv_jax.dynamics.state import BodyState, from_wind, is_finite, to_wind
 from harv_jax.evaluation.metrics import RunMetrics, compute_metrics
 from harv_jax.task.criteria import Envelope, RecoveryCriterion
 from harv_jax.task.spec import DT_S
@@ -43,23 +50,6 @@ from harv_jax.task.turbulent_criterion import TurbulentCriterion
 
 #: ``Trajectory.info`` key of the air's body-axis velocity [3], ft/s (gust and turbulence), with disturbances.
 WIND_INFO_KEY = "wind_body_fps"
-#: Folded into a run's disturbance key for the turbulence draws.
-TURBULENCE_KEY_TAG = 0x54555242  # "TURB"
-
-
-def _wind(
-    state: BodyState,
-    gust_fps: jnp.ndarray,
-    tstate: turb.TurbulenceState | None,
-    params: turb.TurbulenceParams | None,
-    heading0_rad: jnp.ndarray,
-) -> tuple[jnp.ndarray, jnp.ndarray | None]:
-    """The air's body-axis velocity [3] (gust plus turbulence) and rotation rate [3] (None: none)."""
-    if params is None:
-        return gust_fps, None
-    uvw, p = turb.turbulence_velocity(tstate, params, state.pos_ft[2])
-    wind = gust_fps + turb.body_from_ned(quat_to_dcm(state.quat), turb.turbulence_ned(uvw, heading0_rad))
-    return wind, jnp.stack([p, jnp.zeros_like(p), jnp.zeros_like(p)])
 
 
 class Trajectory(struct.PyTreeNode):
@@ -98,13 +88,6 @@ class ClosedLoopResult(struct.PyTreeNode):
     final_delta_rad: jnp.ndarray
     final_ctrl_state: Any
     nonfinite: jnp.ndarray
-
-
-def air_relative(body: BodyState, gust_fps: jnp.ndarray) -> jnp.ndarray:
-    """The wind state [10] relative to the air mass moving at the body-axis gust ``gust_fps`` [3]: V, alpha,
-    beta as air data measure them (the aerodynamics see the same velocity), mu, gamma, chi about the
-    air-relative velocity; p, q, r and h are unchanged. With a zero gust it equals ``to_wind(body)``."""
-    return to_wind(body.replace(uvw_fps=body.uvw_fps - gust_fps))
 
 
 def _as_body(x0: BodyState | jnp.ndarray) -> BodyState:
@@ -180,31 +163,21 @@ def closed_loop(
         rec = (x, delta_new, u, info)
         return (state_new, delta_new, cstate_new, bad | ~u_ok | ~s_ok), rec
 
-    tparams = None if disturbance is None else disturbance.turbulence
-    heading0 = to_wind(body0)[WIND_INDEX["chi"]]
-
     def disturbed_step(carry, keys_k):
-        (state, delta, cstate, bad), (buffer, gust, noise8, tstate) = carry
-        key_k, dkey_k, tkey_k = keys_k
-        wind, wind_pqr = _wind(state, gust, tstate, tparams, heading0)
-        x = air_relative(state, wind)
-        u, cstate_new, info = controller.apply(cstate, dist.measured(x, noise8), reference_rad, key_k)
+        (state, delta, cstate, bad), dstate = carry
+        key_k, dkey_k = keys_k
+        air = air_data(state, dstate, levels)
+        u, cstate_new, info = controller.apply(
+            cstate, measured(air.x_wind, dstate, levels), reference_rad, key_k
+        )
         u_ok = jnp.all(jnp.isfinite(u))
         u = jnp.where(u_ok, u, delta)
-        buffer = dist.push_command(buffer, u)
-        u_plant = dist.delayed_command(buffer, delay_steps)
-        state_new, delta_new, _ = plant_step(state, delta, u_plant, params, dt_s, wind, wind_pqr)
-        s_ok = is_finite(state_new)
-        state_new = jax.tree.map(lambda a, b: jnp.where(s_ok, a, b), state_new, state)
-        normals = dist.step_normals(dkey_k, dtype)
-        gust = dist.gust_step(gust, disturbance.gust_std_fps, disturbance.gust_tau_s, dt_s, normals[:3])
-        noise8 = dist.sensor_noise(normals[3 : 3 + dist.NUM_NOISY_STATES], disturbance.noise_std)
-        if tparams is not None:
-            n6 = jax.random.normal(tkey_k, (turb.NUM_TURBULENCE_NORMALS,), dtype)
-            tstate = turb.turbulence_step(tstate, tparams, state.pos_ft[2], vt_fps(x), dt_s, n6)
-        info = {**info, WIND_INFO_KEY: wind}  # the air mass the plant flew in (fly writes it out)
-        rec = (x, delta_new, u, info)
-        return ((state_new, delta_new, cstate_new, bad | ~u_ok | ~s_ok), (buffer, gust, noise8, tstate)), rec
+        ps, dstate = disturbed_plant_step(state, delta, dstate, u, air, params, levels, dt_s, dkey_k)
+        s_ok = is_finite(ps.body)
+        state_new = jax.tree.map(lambda a, b: jnp.where(s_ok, a, b), ps.body, state)
+        info = {**info, WIND_INFO_KEY: air.wind_fps}  # the air mass the plant flew in (fly writes it out)
+        rec = (air.x_wind, ps.delta_rad, u, info)
+        return ((state_new, ps.delta_rad, cstate_new, bad | ~u_ok | ~s_ok), dstate), rec
 
     keys = jax.random.split(key, n_steps)
     carry0 = (body0, delta0, cstate0, jnp.asarray(False))
@@ -212,18 +185,18 @@ def closed_loop(
         body_fn, xs = step, keys
     else:
         delay_steps = jnp.clip(jnp.asarray(disturbance.delay_steps, jnp.int32), 0, max_delay_steps)
+        levels = disturbance.replace(delay_steps=delay_steps)
         dkeys = jax.random.split(disturbance_key, n_steps + 1)
-        normals0 = dist.step_normals(dkeys[0], dtype)
-        gust0 = dist.gust_init(normals0[:3], disturbance.gust_std_fps).astype(dtype)
-        noise0 = dist.sensor_noise(normals0[3 : 3 + dist.NUM_NOISY_STATES], disturbance.noise_std)
-        buffer0 = jnp.broadcast_to(delta0, (max_delay_steps + 1, 3))
-        tstate0, tkeys = None, None  # no turbulence: no state, nothing drawn
-        if tparams is not None:
-            tkeys = jax.random.split(jax.random.fold_in(disturbance_key, TURBULENCE_KEY_TAG), n_steps + 1)
-            n6 = jax.random.normal(tkeys[0], (turb.NUM_TURBULENCE_NORMALS,), dtype)
-            tstate0, tkeys = turb.turbulence_init(n6), tkeys[1:]
-        carry0 = (carry0, (buffer0, gust0, noise0.astype(dtype), tstate0))
-        body_fn, xs = disturbed_step, (keys, dkeys[1:], tkeys)
+        dstate0 = disturbance_init(
+            dist.step_normals(dkeys[0], dtype),
+            levels,
+            delta0,
+            initial_heading(body0),
+            max_delay_steps,
+            dkeys[0],
+        )
+        carry0 = (carry0, dstate0)
+        body_fn, xs = disturbed_step, (keys, dkeys[1:])
 
     def chunk(carry, xs_chunk):
         carry, recs = jax.lax.scan(body_fn, carry, xs_chunk)
@@ -237,10 +210,10 @@ def closed_loop(
             carry0,
             jax.tree.map(lambda a: a.reshape((n_steps // record_every, record_every) + a.shape[1:]), xs),
         )
-    wind_final = None
+    x_final = None
     if disturbance is not None:
-        carry, (_, gust_final, _, tstate_final) = carry
-        wind_final = _wind(carry[0], gust_final, tstate_final, tparams, heading0)[0]
+        carry, dstate_final = carry
+        x_final = air_data(carry[0], dstate_final, levels).x_wind
     state, delta, cstate, bad = carry
     x_rec, delta_rec, u_rec, info_rec = recs
     n_rec = n_steps // record_every
@@ -254,7 +227,7 @@ def closed_loop(
     return ClosedLoopResult(
         traj=traj,
         final_state=state,
-        x_final_wind=to_wind(state) if wind_final is None else air_relative(state, wind_final),
+        x_final_wind=to_wind(state) if x_final is None else x_final,
         final_delta_rad=delta,
         final_ctrl_state=cstate,
         nonfinite=bad,

@@ -1,5 +1,8 @@
 """Which disturbances a Monte Carlo flies, at which levels (``--disturbances`` and its level options).
 
+The names, options, units, default and largest levels are the declared table
+(``harv_jax.task.disturbance_table``):
+
 - ``noise``, ``--noise-scale X`` (default 1): sensor noise, std X times the env's per-channel maximum;
 - ``delay``, ``--delay-ms D`` (20): the plant flies each command D ms late (rounded to plant steps);
 - ``gust``, ``--gust-fps G`` (10), ``--gust-tau-s``: body-axis Dryden-type gust of std G ft/s,
@@ -28,41 +31,26 @@ import dataclasses
 import math
 from typing import Any
 
-from harv_jax.dynamics.disturbances import (
-    DEFAULT_DELAY_MAX_STEPS,
-    DEFAULT_GUST_STD_MAX_FPS,
-    DEFAULT_GUST_TAU_S,
-)
+from harv_jax.dynamics.disturbances import DEFAULT_GUST_TAU_S
 from harv_jax.dynamics.turbulence import INTENSITIES
 from harv_jax.errors import UsageError
+from harv_jax.task.disturbance_table import BY_NAME, LEVEL_NAMES
 from harv_jax.task.spec import DT_S
 
-#: Disturbance names, in the order of the table above.
-DISTURBANCE_NAMES = ("noise", "delay", "gust", "model", "lag")
+#: Disturbance names with a numeric level, in the table's order.
+DISTURBANCE_NAMES = LEVEL_NAMES
 #: The disturbances ``--disturbances default`` turns on (with `DEFAULT_TURBULENCE`).
-DEFAULT_DISTURBANCES = ("noise", "delay", "model", "lag")
+DEFAULT_DISTURBANCES = tuple(n for n in LEVEL_NAMES if BY_NAME[n].in_default)
 #: The turbulence of ``--disturbances default`` when ``--turbulence`` is not given.
-DEFAULT_TURBULENCE = "moderate"
+DEFAULT_TURBULENCE = str(BY_NAME["turbulence"].default)
 #: Default level of each disturbance (the unit of its level option).
-DEFAULT_LEVELS: dict[str, float] = {
-    "noise": 1.0,
-    "delay": DEFAULT_DELAY_MAX_STEPS * DT_S * 1000.0,
-    "gust": DEFAULT_GUST_STD_MAX_FPS,
-    "model": 1.0,
-    "lag": 0.03,
-}
+DEFAULT_LEVELS: dict[str, float] = {n: float(BY_NAME[n].default) for n in LEVEL_NAMES}
 #: Level option of each disturbance (as the CLI spells it) and its unit.
-LEVEL_OPTIONS: dict[str, tuple[str, str]] = {
-    "noise": ("--noise-scale", "x the env's noise std"),
-    "delay": ("--delay-ms", "ms"),
-    "gust": ("--gust-fps", "ft/s"),
-    "model": ("--model-error", "x the randomization ranges"),
-    "lag": ("--actuator-lag-s", "s"),
-}
+LEVEL_OPTIONS: dict[str, tuple[str, str]] = {n: (BY_NAME[n].option, BY_NAME[n].unit) for n in LEVEL_NAMES}
 #: Largest accepted level per disturbance (the delay: the command FIFO's size).
-MAX_LEVELS: dict[str, float] = {"noise": 20.0, "delay": 1000.0, "gust": 100.0, "model": 4.0, "lag": 1.0}
+MAX_LEVELS: dict[str, float] = {n: BY_NAME[n].max_level for n in LEVEL_NAMES}
 #: Largest turbulence sigma, ft/s (MIL-F-8785C's chart ends at 31 ft/s).
-MAX_TURBULENCE_FPS = 100.0
+MAX_TURBULENCE_FPS = BY_NAME["turbulence"].max_level
 
 
 def parse_turbulence(text: str | None) -> str:

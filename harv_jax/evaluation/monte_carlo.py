@@ -111,7 +111,8 @@ def make_mc_chunk_fn(
     return jax.jit(chunk)
 
 
-def _shard(tree: Any, n_dev: int) -> Any:
+def shard_runs(tree: Any, n_dev: int) -> Any:
+    """``tree`` with its leading (run) axis sharded over the first ``n_dev`` local devices (1: as is)."""
     if n_dev <= 1:
         return tree
     mesh = Mesh(np.array(jax.local_devices()[:n_dev]), ("runs",))
@@ -165,7 +166,7 @@ def run_mc(
     reference_rad = jnp.asarray(reference_rad, dtype=inputs.x0_wind.dtype)
 
     def take(i):
-        return _shard(jax.tree.map(lambda a: a[i * chunk_size : (i + 1) * chunk_size], padded), n_dev)
+        return shard_runs(jax.tree.map(lambda a: a[i * chunk_size : (i + 1) * chunk_size], padded), n_dev)
 
     first = take(0)
     cache_key = (

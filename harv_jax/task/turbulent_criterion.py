@@ -115,6 +115,31 @@ def lowpass(y: jnp.ndarray, tau_s: float, dt_s: float) -> jnp.ndarray:
     return jax.lax.scan(step, y[0], y)[1]
 
 
+def filter_step(
+    filtered: jnp.ndarray,
+    errors_rad: jnp.ndarray,
+    pqr_radps: jnp.ndarray,
+    crit: TurbulentCriterion,
+    dt_s: float,
+) -> jnp.ndarray:
+    """One step of the criterion's low-passes, for a loop that judges each step (the env's recovered
+    reward): ``filtered`` [6] (errors alpha, beta, mu; p, q, r), as [`lowpass`][] steps them; start it at
+    the first sample's ``concatenate([errors_rad, pqr_radps])``."""
+    a_angle = float(np.exp(-dt_s / crit.angle_filter_tau_s))
+    a_rate = float(np.exp(-dt_s / crit.rate_filter_tau_s))
+    e_f = a_angle * filtered[:3] + (1.0 - a_angle) * errors_rad
+    pqr_f = a_rate * filtered[3:] + (1.0 - a_rate) * pqr_radps
+    return jnp.concatenate([e_f, pqr_f])
+
+
+def inside_bands(filtered: jnp.ndarray, tol: jnp.ndarray, margin: jnp.ndarray) -> jnp.ndarray:
+    """Whether the filtered channels [6] (``filter_step``) are inside ``tol`` [4] (alpha, beta, mu rad;
+    omega rad/s) plus ``margin`` [4] ([`margins`][]): the excursion test of one sample."""
+    return jnp.all(jnp.abs(filtered[:3]) < tol[:3] + margin[:3]) & (
+        jnp.linalg.norm(filtered[3:]) < tol[3] + margin[3]
+    )
+
+
 class TurbulentVerdict(struct.PyTreeNode):
     """The criterion in turbulence on one run.
 

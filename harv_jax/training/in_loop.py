@@ -25,7 +25,7 @@ import jax.numpy as jnp
 from harv_jax.control.hybrid import ZETA_SCHEDULES, HybridConfig, HybridGains, HybridState, make_hybrid
 from harv_jax.control.smc import SMCConfig
 from harv_jax.env import Env, EnvState
-from harv_jax.env.recovery import with_auto_reset
+from harv_jax.env.auto_reset import with_auto_reset
 from harv_jax.errors import UsageError
 from harv_jax.task.spaces import command_to_action
 
