@@ -42,6 +42,7 @@ COMMAND_MODULES = (
     "simulate",
     "fly",
     "train",
+    "evaluate",
     "mc",
     "compare",
     "envelope",

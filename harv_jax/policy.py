@@ -109,6 +109,21 @@ def make_policy(
     )
 
 
+def traced_action(policy: Policy) -> Callable[[PPOParams, obs_norm.RunningStats, jax.Array], jax.Array]:
+    """``act(params, normalizer, obs) -> action``: ``policy``'s deterministic action with its parameters
+    as arguments, so that one compiled rollout serves every seed of a run (same network sizes)."""
+    networks = policy.networks
+    normalized = bool(policy.meta.get("normalize_observations", True))
+
+    def act(params: PPOParams, normalizer: obs_norm.RunningStats, obs: jax.Array) -> jax.Array:
+        x = jnp.asarray(obs, jnp.float32)
+        x = obs_norm.normalize(normalizer, x) if normalized else x
+        mean, _ = networks.policy(params, x)
+        return postprocess(mean)
+
+    return act
+
+
 def select_seed(tree: Any, seed: int) -> Any:
     """Slice learner ``seed`` out of a pytree with a leading seed axis."""
     return jax.tree.map(lambda x: x[seed], tree)

@@ -129,7 +129,7 @@ BAD_PRESETS: dict[str, tuple[str | bytes | None, str]] = {
     "rand_noise_length": ("[randomization]\nnoise_std_max = [1.0, 2.0]\n", "must be a list of 8"),
     "rand_delay_fraction": ("[randomization]\ndelay_max_steps = 1.5\n", "delay_max_steps = 1.5 must"),
     "rand_tau_order": ("[randomization]\ngust_tau_min_s = 20.0\n", "randomization.gust_tau_min_s = 20"),
-    "rand_turbulence_name": ('[randomization]\nturbulence = "strong"\n', "randomization.turbulence = 'strong'"),
+    "rand_turbulence_name": ('[randomization]\nturbulence = "gale"\n', "randomization.turbulence = 'gale'"),
     "rand_turbulence_negative": ("[randomization]\nturbulence = -2.0\n", "randomization.turbulence = -2.0"),
     "rand_turbulence_nan": ("[randomization]\nturbulence = nan\n", "randomization.turbulence = nan"),
     "rand_turbulence_table": (
