@@ -32,10 +32,16 @@ def export_stablehlo(path: str | Path, policy: Policy) -> Path:
     """Serialize ``policy.deterministic`` for obs ``[b, O]`` float32 (symbolic b) with ``jax.export``.
 
     Raises:
-        UsageError: the ``flatbuffers`` package (needed by jax.export serialization) is not installed.
+        UsageError: the ``flatbuffers`` package (needed by jax.export serialization) is not installed, or
+            the policy carries a measurement path (the export holds the network only).
     """
     if not export_available():
         raise UsageError("jax.export serialization needs the 'flatbuffers' package: pip install flatbuffers")
+    if policy.meta.get("measurement_path") is not None:
+        raise UsageError(
+            f"the policy carries a measurement path ({policy.meta['measurement_path']}) that the export "
+            "would leave out; fly it through harv_jax (--controller rl) or export one trained without it"
+        )
     (b,) = jax.export.symbolic_shape("b")
     spec = jax.ShapeDtypeStruct((b, policy.networks.observation_size), jnp.float32)
     exported = jax.export.export(policy.deterministic)(spec)

@@ -21,9 +21,19 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Iterable
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, Any
 
 from harv_jax.errors import UsageError
+from harv_jax.task.measurement_path import (
+    ESO_SUFFIX,
+    FILTER_CUTOFF_RANGE_HZ,
+    FILTER_ORDER,
+    FILTER_SUFFIX,
+    OBSERVER_SUFFIX,
+    MeasurementPath,
+    path_from_record,
+    path_record,
+)
 
 if TYPE_CHECKING:  # the table stays importable without jax (the CLI checks its arguments first)
     from harv_jax.control.base import Controller
@@ -89,8 +99,8 @@ def _build_smc_brake_zoom(opts: ControllerOptions) -> Controller:
     return sb.make_smc_brake(SMCConfig(switching=opts.switching), schedule=sb.zoom_schedule())
 
 
-def _policy_act(policy: str | None) -> Callable:
-    """The deterministic action of the policy at ``policy``; UsageError if its sizes do not fit."""
+def _policy(policy: str | None) -> Any:
+    """The policy at ``policy``; UsageError if its sizes do not fit."""
     from harv_jax.policy import resolve_policy
     from harv_jax.task.spaces import check_policy_sizes
 
@@ -99,22 +109,29 @@ def _policy_act(policy: str | None) -> Callable:
         check_policy_sizes(pol.networks.observation_size, pol.networks.action_size)
     except ValueError as e:
         raise UsageError(f"--policy {policy!r}: {e}") from None
-    return pol.deterministic
+    return pol
+
+
+def _behind_path(ctrl: Controller, pol: Any) -> Controller:
+    """``ctrl`` behind the measurement path ``pol`` carries (as it was trained), if any."""
+    path = policy_path(pol)
+    return ctrl if path is None else with_measurement_path(ctrl, path)
 
 
 def _build_rl(opts: ControllerOptions) -> Controller:
     from harv_jax.control.rl import make_rl_controller
 
-    return make_rl_controller(_policy_act(opts.policy))
+    pol = _policy(opts.policy)
+    return _behind_path(make_rl_controller(pol.deterministic), pol)
 
 
 def _build_hybrid(opts: ControllerOptions) -> Controller:
     from harv_jax.control.hybrid import ZETA_SCHEDULES, HybridConfig, make_hybrid
 
-    act = _policy_act(opts.policy)
+    pol = _policy(opts.policy)
     if opts.zeta not in ZETA_SCHEDULES:
         raise UsageError(f"--zeta {opts.zeta!r} is unknown; allowed: {', '.join(ZETA_SCHEDULES)}")
-    return make_hybrid(act, HybridConfig(schedule=opts.zeta))
+    return _behind_path(make_hybrid(pol.deterministic, HybridConfig(schedule=opts.zeta)), pol)
 
 
 #: The controllers, in help order.
@@ -172,25 +189,6 @@ def _unknown(name: str) -> UsageError:
     )
 
 
-#: Suffix of a measurement filter: ``<name>+lp<cutoff Hz>``.
-FILTER_SUFFIX = "+lp"
-#: Suffix of the model-based observer: ``<name>+obs<bandwidth Hz>``.
-OBSERVER_SUFFIX = "+obs"
-#: Suffix of the extended-state observer (with a rate-bias estimate): ``<name>+eso<bandwidth Hz>``.
-ESO_SUFFIX = "+eso"
-#: Order of the filter suffix's Butterworth low-pass.
-FILTER_ORDER = 2
-#: Cutoffs / bandwidths a suffix may name, Hz (below the plant rate's Nyquist frequency).
-FILTER_CUTOFF_RANGE_HZ = (0.05, 40.0)
-
-
-class MeasurementPath(NamedTuple):
-    """What a controller name's suffix puts between the sensors and the controller."""
-
-    suffix: str  # FILTER_SUFFIX, OBSERVER_SUFFIX or ESO_SUFFIX
-    bandwidth_hz: float
-
-
 def base_name(name: str) -> str:
     """``name`` without its measurement-path suffix (not validated)."""
     return name.partition("+")[0]
@@ -218,14 +216,8 @@ def split_filter(name: str) -> tuple[str, MeasurementPath | None]:
     return base, MeasurementPath(suffix, hz)
 
 
-def build_controller(name: str, options: ControllerOptions | None = None) -> Controller:
-    """The controller ``name`` built with ``options``; UsageError for an unknown name or bad option."""
-    base, path = split_filter(name)
-    if base not in CONTROLLERS:
-        raise _unknown(name)
-    ctrl = CONTROLLERS[base].build(options or ControllerOptions())
-    if path is None:
-        return ctrl
+def with_measurement_path(ctrl: Controller, path: MeasurementPath) -> Controller:
+    """``ctrl`` fed through the measurement path ``path`` (low-pass, observer or extended-state observer)."""
     if path.suffix in (OBSERVER_SUFFIX, ESO_SUFFIX):
         from harv_jax.control.observer import with_state_observer
 
@@ -233,6 +225,50 @@ def build_controller(name: str, options: ControllerOptions | None = None) -> Con
     from harv_jax.control.filters import with_measurement_filter
 
     return with_measurement_filter(ctrl, path.bandwidth_hz, FILTER_ORDER)
+
+
+def parse_measurement_path(text: str, where: str = "measurement_path") -> MeasurementPath | None:
+    """``none`` or a path as a suffix names it without its ``+`` (``lp2``, ``obs0.3``, ``eso0.075``);
+    UsageError naming the value and what is allowed."""
+    t = str(text).strip()
+    if t == "none":
+        return None
+    try:
+        return split_filter(f"x+{t}")[1]
+    except UsageError:
+        lo, hi = FILTER_CUTOFF_RANGE_HZ
+        raise UsageError(
+            f"{where} {text!r}: allowed: none, lpHZ (low-pass), obsHZ (observer) or esoHZ (extended-state "
+            f"observer) with HZ from {lo:g} to {hi:g} (e.g. lp2, obs0.3)"
+        ) from None
+
+
+def policy_path(policy: Any) -> MeasurementPath | None:
+    """The measurement path a loaded policy carries (its metadata's, validated on load), or None."""
+    rec = policy.meta.get("measurement_path")
+    return None if rec is None else path_from_record(rec, "policy")
+
+
+def build_controller(name: str, options: ControllerOptions | None = None) -> Controller:
+    """The controller ``name`` built with ``options``; UsageError for an unknown name or bad option. A
+    policy that carries its measurement path flies behind it (``rl``, ``hybrid``); a suffix on such a
+    policy's controller is refused."""
+    base, path = split_filter(name)
+    if base not in CONTROLLERS:
+        raise _unknown(name)
+    options = options or ControllerOptions()
+    if path is not None and "policy" in CONTROLLERS[base].options:
+        from harv_jax.policy import resolve_policy
+
+        carried = policy_path(resolve_policy(options.policy))
+        if carried is not None:
+            rec = path_record(carried)
+            raise UsageError(
+                f"controller {name!r}: the policy {options.policy or 'shipped'!r} carries its measurement "
+                f"path ({rec['kind']} {rec['bandwidth_hz']:g} Hz) and flies behind it; drop the suffix"
+            )
+    ctrl = CONTROLLERS[base].build(options)
+    return ctrl if path is None else with_measurement_path(ctrl, path)
 
 
 def uses_option(names: Iterable[str], option: str) -> bool:

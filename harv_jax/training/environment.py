@@ -9,17 +9,20 @@ from harv_jax.control.registry import build_controller
 from harv_jax.env import Env, EnvParams, make_env
 from harv_jax.ppo.config import PPOConfig
 from harv_jax.training.in_loop import InLoopEnv, make_in_loop_env
+from harv_jax.training.measured_env import MeasuredEnv, make_measured_env
 from harv_jax.training.spec import TrainSpec
 from harv_jax.training.teacher import TeacherEnv, make_teacher_env
 
 
 def make_harv_env(
     spec: TrainSpec | dict[str, Any], spin_bank: Any = None
-) -> tuple[Env | InLoopEnv | TeacherEnv, EnvParams]:
+) -> tuple[Env | InLoopEnv | TeacherEnv | MeasuredEnv, EnvParams]:
     """(env, env_params) of a run: the recovery env of ``spec.env``, with the hybrid law inside its step
     (``spec.loop``: ``harv_jax.training.in_loop``) or a teacher whose action labels every step
-    (``spec.teacher``: ``harv_jax.training.teacher``). With spin resets on (``spin.reset_prob`` > 0) the
-    spin bank is ``spin_bank`` or, if None, made here from the ``[spin]`` table.
+    (``spec.teacher``: ``harv_jax.training.teacher``), the policy's observation through its measurement
+    path (``spec.measurement_path``: ``harv_jax.training.measured_env``). With spin resets on
+    (``spin.reset_prob`` > 0) the spin bank is ``spin_bank`` or, if None, made here from the ``[spin]``
+    table.
 
     ``spec`` may also be a preset's env settings (a dict with the nested tables and the wrapper keys),
     checked as a spec with the default PPO config (UsageError naming a bad value).
@@ -33,4 +36,6 @@ def make_harv_env(
         env = make_in_loop_env(env, spec.loop.removeprefix("hybrid:"))
     if spec.teacher is not None:
         env = make_teacher_env(env, build_controller(spec.teacher), spec.teacher, spec.teacher_model)
+    if spec.path is not None:  # the policy observes through its measurement path; the teacher the true state
+        env = make_measured_env(env, spec.path)
     return env, spec.env.params(spin_bank)

@@ -11,6 +11,7 @@ import jax
 import numpy as np
 
 from harv_jax.control.hybrid import HybridConfig, make_hybrid
+from harv_jax.control.registry import with_measurement_path
 from harv_jax.control.rl import make_rl_controller
 from harv_jax.env import EnvParams
 from harv_jax.evaluation.policy_eval import make_eval_batch, make_policy_eval, summarize_eval
@@ -18,6 +19,7 @@ from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo import normalize as obs_norm
 from harv_jax.ppo.networks import postprocess
 from harv_jax.ppo.train import Trainer, TrainingState
+from harv_jax.task.measurement_path import path_record
 from harv_jax.training import outputs
 from harv_jax.training.spec import TrainSpec
 
@@ -44,6 +46,7 @@ def make_eval_hook(
     if not ev.every:
         return None, ""
     batch = make_eval_batch(ev.upset_runs, ev.spin_runs, env_params.aircraft)
+    path = None if spec.path is None else path_record(spec.path)
 
     def act(params: Any, normalizer: Any, obs: jax.Array) -> jax.Array:
         obs_in = obs_norm.normalize(normalizer, obs) if cfg.normalize_observations else obs
@@ -51,7 +54,8 @@ def make_eval_hook(
         return postprocess(mean)
 
     def make_controller(act_obs):
-        return make_rl_controller(act_obs)
+        ctrl = make_rl_controller(act_obs)
+        return ctrl if spec.path is None else with_measurement_path(ctrl, spec.path)
 
     if loop != "none":  # the policy flies in the loop it trains in
         hybrid_cfg = HybridConfig(schedule=loop.removeprefix("hybrid:"))
@@ -71,7 +75,7 @@ def make_eval_hook(
         if out_dir is not None:
             steps = (p + 1) * ppo_config.steps_per_period(cfg)
             outputs.export_seed_policies(
-                out_dir / "policy" / f"period_{p + 1:04d}", state, trainer, cfg, steps, loop
+                out_dir / "policy" / f"period_{p + 1:04d}", state, trainer, cfg, steps, loop, None, path
             )
         return out, stop
 

@@ -69,11 +69,14 @@ def export_seed_policies(
     env_steps: int,
     loop: str = "none",
     demos: dict[str, Any] | None = None,
+    measurement_path: dict[str, Any] | None = None,
 ) -> list[Policy]:
     """Write ``pdir/policy_seed<i>.npz`` for every seed; returns the policies.
 
     ``loop``: the loop the policies were trained in (``harv_jax.training.in_loop``), recorded in ``meta``;
-    ``demos``: the demonstrations' record (path, SHA-256, runs), recorded in ``meta`` if given.
+    ``demos``: the demonstrations' record (path, SHA-256, runs), recorded in ``meta`` if given;
+    ``measurement_path``: the path the policies observe through (``control.registry.path_record``), recorded
+    in ``meta`` if given (the registry then flies them behind it).
     """
     params, normalizer = jax.device_get((state.params, state.normalizer))
     pols = []
@@ -87,6 +90,8 @@ def export_seed_policies(
         }
         if demos is not None:
             meta["demos"] = demos
+        if measurement_path is not None:
+            meta["measurement_path"] = measurement_path
         pol = make_policy(
             select_seed(params, s),
             select_seed(normalizer, s),
@@ -121,6 +126,7 @@ def export_policies(
     history: list[dict[str, Any]],
     loop: str = "none",
     demos: dict[str, Any] | None = None,
+    measurement_path: dict[str, Any] | None = None,
 ) -> int:
     """Write ``policy/policy_seed<i>.npz`` per seed and ``policy.npz``/``policy.stablehlo`` of the best.
 
@@ -131,9 +137,10 @@ def export_policies(
     best = best_seed(history)
     pdir = out_dir / "policy"
     steps = history[-1]["env_steps"] if history else 0
-    pols = export_seed_policies(pdir, state, trainer, cfg, steps, loop, demos)
+    pols = export_seed_policies(pdir, state, trainer, cfg, steps, loop, demos, measurement_path)
     policy_api.export_npz(pdir / "policy.npz", pols[best])
-    if policy_api.export_available():  # jax.export serialization needs flatbuffers
+    # jax.export serialization needs flatbuffers; a policy behind a measurement path is flown by harv_jax only
+    if policy_api.export_available() and pols[best].meta.get("measurement_path") is None:
         policy_api.export_stablehlo(pdir / "policy.stablehlo", pols[best])
     return best
 

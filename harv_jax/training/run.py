@@ -135,6 +135,7 @@ def run_train(
     from harv_jax.plots.training import plot_training_curve
     from harv_jax.ppo import sharding
     from harv_jax.ppo.runner import run_training
+    from harv_jax.task.measurement_path import path_record
     from harv_jax.training import outputs
     from harv_jax.training.eval_hook import make_eval_hook
     from harv_jax.training.stall import make_watchdog
@@ -223,7 +224,10 @@ def run_train(
             f"harv-jax train: {cfg.num_seeds} seed(s), {cfg.num_envs} envs",
         )
     demos = None if setup.demos is None else setup.demos.record()
-    best = outputs.export_policies(out_dir, result.state, result.trainer, cfg, history, spec.loop, demos)
+    path = None if spec.path is None else path_record(spec.path)
+    best = outputs.export_policies(
+        out_dir, result.state, result.trainer, cfg, history, spec.loop, demos, path
+    )
     summary = outputs.run_summary(out_dir, history, best, spec.target_recovery)
     if demos is not None:
         summary["demos"] = demos

@@ -20,15 +20,28 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from harv_jax.control.registry import controller_names, uses_option
+from harv_jax.control.registry import controller_names, parse_measurement_path, uses_option
 from harv_jax.env.env_settings import EnvSettings
 from harv_jax.errors import UsageError
 from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo.config import PPOConfig
+from harv_jax.task.measurement_path import MeasurementPath
 from harv_jax.training.in_loop import LOOP_KEY, parse_loop
+from harv_jax.training.measured_env import MEASUREMENT_PATH_KEY
 from harv_jax.training.teacher import TEACHER_KEY, TEACHER_MODEL_KEY, TEACHER_MODELS
 
-WRAPPER_KEYS = (LOOP_KEY, TEACHER_KEY, TEACHER_MODEL_KEY)
+WRAPPER_KEYS = (LOOP_KEY, TEACHER_KEY, TEACHER_MODEL_KEY, MEASUREMENT_PATH_KEY)
+
+
+def check_measurement_path(text: Any, loop: str) -> None:
+    """``[env] measurement_path``: ``none``, ``lpHZ``, ``obsHZ`` or ``esoHZ``; not with a controller in the
+    loop."""
+    if not isinstance(text, str):
+        raise UsageError(f"[env] measurement_path {text!r}: allowed: none, lpHZ, obsHZ or esoHZ (e.g. lp2)")
+    if parse_measurement_path(text, "[env] measurement_path") is not None and loop != "none":
+        raise UsageError(
+            f"[env] measurement_path {text!r} cannot be combined with --in-loop; drop one of them"
+        )
 
 
 def check_wrappers(loop: str, teacher: Any, teacher_model: Any, teacher_model_set: bool = True) -> None:
@@ -63,6 +76,9 @@ def check_env_table(env_table: Any) -> EnvSettings:
         env_table.get(TEACHER_MODEL_KEY, "episode"),
         TEACHER_MODEL_KEY in env_table,
     )
+    check_measurement_path(
+        env_table.get(MEASUREMENT_PATH_KEY, "none"), parse_loop(env_table.get(LOOP_KEY, "none"))
+    )
     return env
 
 
@@ -81,6 +97,8 @@ class TrainSpec:
         target_recovery: stop once every seed recovers this fraction of the ``[eval]`` batch, or None.
         demos_sha256: the SHA-256 the demonstrations file must have (a resumed run's), or None.
         teacher_model_set: whether ``teacher_model`` was given (it is recorded only then).
+        measurement_path: ``none`` or the path the policy observes through (``[env] measurement_path``:
+            ``lpHZ``, ``obsHZ``, ``esoHZ``; ``harv_jax.training.measured_env``).
     """
 
     preset: str
@@ -93,9 +111,11 @@ class TrainSpec:
     target_recovery: float | None = None
     demos_sha256: str | None = None
     teacher_model_set: bool = False
+    measurement_path: str = "none"
 
     def __post_init__(self) -> None:
         check_wrappers(self.loop, self.teacher, self.teacher_model, self.teacher_model_set)
+        check_measurement_path(self.measurement_path, self.loop)
         cfg = self.ppo
         if (cfg.bc_coef > 0 or cfg.bc_coef_end > 0) and self.teacher is None and cfg.demos is None:
             raise UsageError(
@@ -148,6 +168,7 @@ class TrainSpec:
             target_recovery=target_recovery,
             demos_sha256=demos_sha256,
             teacher_model_set=TEACHER_MODEL_KEY in env_table,
+            measurement_path=env_table.get(MEASUREMENT_PATH_KEY, "none"),
         )
 
     def env_settings(self) -> dict[str, Any]:
@@ -160,7 +181,14 @@ class TrainSpec:
             out[TEACHER_KEY] = self.teacher
         if self.teacher_model_set:
             out[TEACHER_MODEL_KEY] = self.teacher_model
+        if self.measurement_path != "none":
+            out[MEASUREMENT_PATH_KEY] = self.measurement_path
         return out
+
+    @property
+    def path(self) -> MeasurementPath | None:
+        """The measurement path the policy observes through, or None."""
+        return parse_measurement_path(self.measurement_path, "[env] measurement_path")
 
     def record(self, demos: dict[str, Any] | None = None) -> dict[str, Any]:
         """``config.json``'s content: preset, PPO config, env settings, initial policy, target and the
