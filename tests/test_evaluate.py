@@ -136,9 +136,19 @@ def test_a_run_without_policies_is_refused(fake_run, tmp_path, monkeypatch, caps
 
 @pytest.mark.slow  # ~2 min on the 2-core CPU: four rollouts compiled, two reference controllers
 def test_evaluate_flies_the_monte_carlos_runs_and_resumes(fake_run, tmp_path, monkeypatch, capsys):
-    """The policy's rollout with traced parameters gives the Monte Carlo's per-run results (``harv-jax mc``
-    on the same seed), the seeds share one compile, and ``--resume`` reuses every stored cell."""
+    """The policy's rollout with traced parameters, behind the measurement path the policies carry, gives
+    the Monte Carlo's per-run results (``harv-jax mc`` on the same seed), the seeds share one compile, and
+    ``--resume`` reuses every stored cell."""
     from harv_jax.evaluation.seed_evaluation import cell_path
+
+    for f in (fake_run / "policy").iterdir():  # both seeds trained behind the 0.3 Hz observer
+        with np.load(f, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+        meta = json.loads(str(arrays["meta"]))
+        arrays["meta"] = np.asarray(
+            json.dumps({**meta, "measurement_path": {"kind": "obs", "bandwidth_hz": 0.3}})
+        )
+        np.savez(f, **arrays)
 
     out = tmp_path / "ev"
     argv = [

@@ -13,9 +13,10 @@ runs):
 - ``spin``: the 30 s developed spin of the nominal aircraft (``harv-jax compare``'s), one run.
 
 Each seed's policy flies RL-only (``rl``) and in the default hybrid (``hybrid``, schedule
-``control.registry.DEFAULT_ZETA``); the reference controllers fly once per condition: the SMC (behind its
-measurement path ``smc+lp2`` in the noisy conditions: in turbulence the 0.1 Hz observer
-lags the air-relative angles, ``experiments/turbulence``) and ``smc-brake-zoom``. A policy's rollout is
+``control.registry.DEFAULT_ZETA``), behind the measurement path it carries (as ``--controller rl`` flies
+it); the reference controllers fly once per condition: the SMC (behind its 2 Hz low-pass ``smc+lp2`` in the
+noisy conditions: in turbulence the 0.1 Hz observer lags the air-relative angles, ``experiments/turbulence``)
+and ``smc-brake-zoom``. A policy's rollout is
 compiled once per condition and controller kind with the policy's parameters as arguments, so the seeds
 share it. Cells are written as they finish (``cells/<condition>/<controller>.npz``, atomically) and a
 re-run with the same settings reuses them (``--resume``).
@@ -37,7 +38,7 @@ import numpy as np
 from harv_jax import atomic
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.hybrid import HybridConfig, make_hybrid
-from harv_jax.control.registry import DEFAULT_ZETA, build_controller
+from harv_jax.control.registry import DEFAULT_ZETA, build_controller, policy_path, with_measurement_path
 from harv_jax.control.rl import make_rl_controller
 from harv_jax.evaluation.closed_loop import closed_loop, score
 from harv_jax.evaluation.disturbance_spec import DisturbanceSpec, parse_disturbances
@@ -45,6 +46,7 @@ from harv_jax.evaluation.mc_inputs import MCInputs, sample_mc_inputs
 from harv_jax.evaluation.monte_carlo import run_mc, shard_runs
 from harv_jax.guards import AUTO_CHUNK_RUNS_PER_CPU_DEVICE, auto_chunk
 from harv_jax.policy import Policy, traced_action
+from harv_jax.task.measurement_path import MeasurementPath
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S, H0_FT
 
 #: The policy's controller kinds.
@@ -143,9 +145,14 @@ def condition_inputs(cond: Condition, settings: EvalSettings, nominal: AircraftP
     )
 
 
-def _policy_controller(kind: str, act: Callable, params: Any, normalizer: Any, zeta: str):
+def _policy_controller(
+    kind: str, act: Callable, params: Any, normalizer: Any, zeta: str, path: MeasurementPath | None
+):
+    """The policy as ``kind`` (rl, hybrid), behind the measurement path it was trained behind (if any), as
+    ``control.registry`` builds it."""
     one = lambda obs: act(params, normalizer, obs)  # noqa: E731
-    return make_rl_controller(one) if kind == "rl" else make_hybrid(one, HybridConfig(schedule=zeta))
+    ctrl = make_rl_controller(one) if kind == "rl" else make_hybrid(one, HybridConfig(schedule=zeta))
+    return ctrl if path is None else with_measurement_path(ctrl, path)
 
 
 def _cell(recovered: Any, t_recover_s: Any, tv: Any, chatter: Any) -> dict[str, np.ndarray]:
@@ -181,6 +188,10 @@ class Evaluator:
         self._compiled: dict[tuple[str, str], Any] = {}
         self._inputs: dict[str, Any] = {}
         self._act = traced_action(policies[0])
+        paths = {json.dumps(p.meta.get("measurement_path"), sort_keys=True) for p in policies}
+        if len(paths) > 1:
+            raise ValueError("the seeds' policies carry different measurement paths; one run has one")
+        self.path = policy_path(policies[0])
 
     def inputs(self, cond: Condition) -> Any:
         """The condition's runs (cached)."""
@@ -221,13 +232,14 @@ class Evaluator:
         if key in self._compiled:
             return self._compiled[key]
         act, zeta, n_steps, ref, dt = self._act, self.settings.zeta, self.n_steps, self.reference, DT_S
+        path = self.path
         if cond.disturbances is None:
             x0, d0 = self.inputs(cond)
             nominal = self.nominal
 
             @jax.jit
             def spin(params, normalizer):
-                c = _policy_controller(kind, act, params, normalizer, zeta)
+                c = _policy_controller(kind, act, params, normalizer, zeta, path)
                 res = closed_loop(c, nominal, x0, ref, jax.random.key(0), n_steps, dt, d0)
                 return score(res, ref, nominal, dt)[0]
 
@@ -255,7 +267,7 @@ class Evaluator:
 
         @jax.jit
         def chunk_fn(params, normalizer, runs):
-            c = _policy_controller(kind, act, params, normalizer, zeta)
+            c = _policy_controller(kind, act, params, normalizer, zeta, path)
             return jax.vmap(lambda run: one_run(c, run))(runs)
 
         def fly(params, normalizer):
