@@ -408,10 +408,15 @@ def test_turbulence_and_lag_draws_are_their_own():
     out = {}
     for name, s in (("plain", plain), ("disturbed", disturbed)):
         env, params = make_env(s.config), s.params()
-        obs, st = jax.vmap(env.reset, in_axes=(0, None))(ks, params)
-        a = jnp.full((n, 3), 0.1, jnp.float32)
-        obs1, st1, *_ = jax.vmap(env.step_no_reset, in_axes=(0, 0, 0, None))(ks, st, a, params)
-        out[name] = (obs, st, obs1, st1)
+
+        @jax.jit
+        def reset_and_step(ks, params, env=env):
+            obs, st = jax.vmap(env.reset, in_axes=(0, None))(ks, params)
+            a = jnp.full((n, 3), 0.1, jnp.float32)
+            obs1, st1, *_ = jax.vmap(env.step_no_reset, in_axes=(0, 0, 0, None))(ks, st, a, params)
+            return obs, st, obs1, st1
+
+        out[name] = reset_and_step(ks, params)
     obs_p, st_p, _, _ = out["plain"]
     obs_d, st_d, obs1_d, st1_d = out["disturbed"]
     # other draws unchanged: initial state, aircraft mass, noise, gust, delay
