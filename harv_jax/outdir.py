@@ -76,8 +76,11 @@ def _what_to_do(out: Path) -> str:
     """What a user can do with the unfinished run folder ``out``."""
     doc = manifest.read(out) or {}
     q = shlex.quote(str(out))
-    if str(doc.get("command", "")).split()[1:2] == ["train"]:
+    command = str(doc.get("command", "")).split()
+    if command[1:2] == ["train"]:
         return f"continue it with `harv-jax train --resume {q}`, or pass --force to replace it"
+    if command[1:2] == ["evaluate"]:
+        return "continue it with the same command and --resume, or pass --force to replace it"
     return "pass --force to replace it, or choose another --out"
 
 

@@ -199,9 +199,8 @@ def _npz_meta(name: str, arrays: dict[str, np.ndarray]) -> dict[str, Any]:
     for key, v in sizes.items():
         if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_LAYER_WIDTH:
             raise UsageError(f"{name!r}: {key} {v!r} must be an integer in [1, {MAX_LAYER_WIDTH}]")
-    if (
-        "measurement_path" in meta
-    ):  # the path the policy was trained behind: validated here, flown by the registry
+    # the measurement path the policy was trained behind: validated here, flown by the registry
+    if "measurement_path" in meta:
         path_from_record(meta["measurement_path"], repr(name))
     if not isinstance(meta["normalize_observations"], bool):
         raise UsageError(

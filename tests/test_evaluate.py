@@ -189,3 +189,15 @@ def test_evaluate_flies_the_monte_carlos_runs_and_resumes(fake_run, tmp_path, mo
     assert again["seeds"] == doc["seeds"]
     code, text = _run(monkeypatch, capsys, [*argv[:-2], "--runs", "7", "--out", str(out), "--resume"])
     assert code == 2 and "runs differ" in text
+
+
+def test_an_interrupted_evaluation_names_resume(fake_run, tmp_path, monkeypatch, capsys):
+    from harv_jax import atomic, manifest
+
+    out = tmp_path / "ev"
+    out.mkdir()
+    atomic.write_text(out / manifest.MARKER, "written by harv-jax\n")
+    manifest.start(out, f"harv-jax evaluate {fake_run} --out {out}")
+    manifest.set_status(out, manifest.INTERRUPTED)
+    code, text = _run(monkeypatch, capsys, ["evaluate", str(fake_run), "--out", str(out)])
+    assert code == 2 and "interrupted" in text and "--resume" in text and len(text.strip().splitlines()) == 1
