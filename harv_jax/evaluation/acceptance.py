@@ -1,4 +1,4 @@
-"""The acceptance criteria of a trained policy, defined once: [`CRITERIA`][].
+"""The acceptance criteria of a trained policy, defined once: `CRITERIA`.
 
 ``harv-jax evaluate`` (``harv_jax.evaluation.seed_evaluation``) computes, for every seed of a training run,
 a flat dict of numbers named ``<condition>.<controller>.<metric>`` (``clean.rl.recovered``,

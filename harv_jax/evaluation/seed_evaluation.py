@@ -1,7 +1,7 @@
 """Every seed of a training run on the conditions a user judges a policy by: ``harv-jax evaluate``.
 
 A *cell* is one controller on one condition: the per-run recovered flags, recovery times, control total
-variation and chatter of a Monte Carlo (or of the 30 s spin). The conditions ([`CONDITIONS`][]) draw their
+variation and chatter of a Monte Carlo (or of the 30 s spin). The conditions (`CONDITIONS`) draw their
 runs from one Monte Carlo seed (common random numbers: every controller of a condition flies the same
 runs):
 

@@ -1,4 +1,4 @@
-"""The disturbances a controller meets, declared once: [`DISTURBANCES`][].
+"""The disturbances a controller meets, declared once: `DISTURBANCES`.
 
 Each row names a disturbance, the Monte Carlo commands' level option and its unit, the level of
 ``--disturbances default``, the largest level accepted, the training preset's ``[randomization]`` keys
