@@ -56,7 +56,10 @@ def _fly(controller, n_steps=300):
     return np.asarray(res.traj.x_wind), np.asarray(res.traj.u_cmd_rad)
 
 
-@pytest.mark.parametrize("kind", ["rl", "hybrid"])
+@pytest.mark.parametrize(
+    "kind",
+    ["rl", pytest.param("hybrid", marks=pytest.mark.slow)],  # the hybrid: 3 more compiles, ~35 s
+)
 def test_a_policy_flies_behind_the_path_it_carries(tmp_path, kind):
     carried = _with_meta(tmp_path, "lp.npz", measurement_path={"kind": "lp", "bandwidth_hz": 2.0})
     behind = build_controller(kind, ControllerOptions(policy=str(carried)))
