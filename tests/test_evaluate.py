@@ -201,3 +201,10 @@ def test_an_interrupted_evaluation_names_resume(fake_run, tmp_path, monkeypatch,
     manifest.set_status(out, manifest.INTERRUPTED)
     code, text = _run(monkeypatch, capsys, ["evaluate", str(fake_run), "--out", str(out)])
     assert code == 2 and "interrupted" in text and "--resume" in text and len(text.strip().splitlines()) == 1
+
+
+def test_a_run_record_naming_an_unknown_aircraft_is_refused(fake_run, tmp_path, monkeypatch, capsys):
+    (fake_run / "config.json").write_text(json.dumps({"env": {"aircraft": "zeppelin"}}))
+    code, text = _run(monkeypatch, capsys, ["evaluate", str(fake_run), "--out", str(tmp_path / "ev")])
+    assert code == 2 and "unknown aircraft 'zeppelin'" in text and len(text.strip().splitlines()) == 1
+    assert not (tmp_path / "ev").exists()

@@ -48,6 +48,24 @@ def policy_files(run_dir: Path) -> list[Path]:
     return [p for _, p in found]
 
 
+def run_aircraft(run_dir: Path) -> str:
+    """The registered aircraft a training run flew (its ``config.json``'s ``env.aircraft``; default harv);
+    UsageError for a record that is not JSON or names an unknown aircraft."""
+    from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT, check_aircraft_name
+
+    try:
+        record = json.loads((run_dir / "config.json").read_text())
+    except (OSError, ValueError):
+        raise UsageError(f"RUN_DIR {str(run_dir)!r}: config.json is not a run record (JSON)") from None
+    env = record.get("env") if isinstance(record, dict) else None
+    name = env.get("aircraft", DEFAULT_AIRCRAFT) if isinstance(env, dict) else DEFAULT_AIRCRAFT
+    try:
+        check_aircraft_name(name)
+    except ValueError as e:
+        raise UsageError(f"RUN_DIR {str(run_dir)!r}: {e}") from None
+    return name
+
+
 def parse_conditions(text: str) -> tuple[str, ...]:
     """``--conditions``: ``all`` or a comma list of condition names; UsageError otherwise."""
     from harv_jax.evaluation.seed_evaluation import CONDITIONS
@@ -97,6 +115,7 @@ def evaluate(
     record = {
         **settings.record(),
         "run_dir": str(run_dir),
+        "aircraft": run_aircraft(run_dir),
         "policies": [{"seed": i, "policy": str(p), "sha256": file_sha256(p)} for i, p in enumerate(files)],
     }
     out_dir = _open_out(out, resume, force, record, [run_dir])

@@ -57,7 +57,7 @@ def run_evaluation(
     ``evaluate.png``. Returns the document."""
     t0 = time.perf_counter()
     policies = load_policies(files)
-    _, nominal = resolve_aircraft(None)
+    _, nominal = resolve_aircraft(record.get("aircraft"))  # the aircraft the run trained on
     ev = Evaluator(settings, policies, nominal)
     cells: dict[str, dict[str, Any]] = {}
     reused = flown = 0
