@@ -6,15 +6,16 @@ One step (dt_s, controller at the plant rate):
     u_k      = controller.apply(ctrl_state, x_k, reference, key_k)
     state_k+1, delta_k+1 = plant_step(state_k, delta_k, u_k, params, dt_s)  (actuator, RK4: dynamics.plant)
 
-With disturbances (``disturbance``: ``harv_jax.dynamics.disturbances``, the training env's model) the
-controller sees x_k plus sensor noise, the plant flies the command ``delay_steps`` old, with the body-axis
-gust and the Dryden turbulence (``dynamics.turbulence``: its own draws, from ``disturbance_key`` folded with
-`TURBULENCE_KEY_TAG`, so turning it on changes no other draw; its frame is the initial heading's; its
-scales follow the altitude and airspeed at the start of each step); the recorded and scored states are the
-true ones, relative to the air mass (``air_relative``: the
-angles the aerodynamics see; the inertial ones differ from them by up to gust / V, ~2 deg for 10 ft/s at
-300 ft/s). ``model_params`` builds the controller on another aircraft than the plant's (model error: e.g.
-the nominal aircraft while the plant flies a randomized one).
+With disturbances (``disturbance``: ``harv_jax.dynamics.disturbances``) every step is the training env's
+own, ``dynamics.disturbed_step.disturbed_plant_step``: the controller sees the air data plus sensor noise,
+the plant flies the command ``delay_steps`` old in the body-axis gust and the Dryden turbulence
+(``dynamics.turbulence``: its draws from each step's disturbance key folded with a tag, so turning it on
+changes no other draw; its frame is the initial heading's; its scales follow the altitude and airspeed at
+the start of each step), and the next gust, noise and turbulence come from the step's key of
+``disturbance_key``'s split. The recorded and scored states are the true ones relative to the air mass
+(``air_relative``: the angles the aerodynamics see; the inertial ones differ from them by up to gust / V,
+~2 deg for 10 ft/s at 300 ft/s). ``model_params`` builds the controller on another aircraft than the
+plant's (model error: e.g. the nominal aircraft while the plant flies a randomized one).
 
 Everything is vmappable over aircraft (``params``), initial states, references and keys; the number
 of steps is static. A non-finite command is replaced by the current deflection; a non-finite state
