@@ -518,6 +518,19 @@ def print_table(s: dict, duration_s: float) -> None:
     )
 
 
+def per_run_lists(per_run: dict) -> dict:
+    """The per-run arrays as JSON lists (the termination flags one list per flag)."""
+    return {
+        k: {f: np.asarray(v[f]).tolist() for f in FLAGS} if k == "env_term_flags" else np.asarray(v).tolist()
+        for k, v in per_run.items()
+    }
+
+
+def command_text(argv: list[str] | None) -> str:
+    """The command line that ran this script."""
+    return "python " + " ".join(shlex.quote(a) for a in [sys.argv[0], *(argv or sys.argv[1:])])
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=1000)
@@ -537,7 +550,7 @@ def main(argv: list[str] | None = None) -> None:
     per_run = res.pop("per_run")
     summary = summarize(per_run)
     doc = {
-        "command": "python " + " ".join(shlex.quote(a) for a in [sys.argv[0], *(argv or sys.argv[1:])]),
+        "command": command_text(argv),
         "seed": args.seed,
         "runs": args.runs,
         "target_alpha_rad": args.target_alpha,
@@ -549,14 +562,7 @@ def main(argv: list[str] | None = None) -> None:
         "scale": dict(zip(WIND_INDEX, SCALE.tolist(), strict=True)),
         **res,
         "summary": summary,
-        "per_run": {
-            k: (
-                {f: np.asarray(v[f]).tolist() for f in FLAGS}
-                if k == "env_term_flags"
-                else np.asarray(per_run[k]).tolist()
-            )
-            for k, v in per_run.items()
-        },
+        "per_run": per_run_lists(per_run),
     }
     out = args.out or RESULTS / f"seed{args.seed}_n{args.runs}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -570,7 +576,7 @@ def main_disturbed(args: argparse.Namespace, argv: list[str] | None) -> None:
     per_run = res.pop("per_run")
     summary = summarize_disturbed(per_run)
     doc = {
-        "command": "python " + " ".join(shlex.quote(a) for a in [sys.argv[0], *(argv or sys.argv[1:])]),
+        "command": command_text(argv),
         "seed": args.seed,
         "runs": args.runs,
         "duration_s": args.duration,
@@ -578,14 +584,7 @@ def main_disturbed(args: argparse.Namespace, argv: list[str] | None) -> None:
         "jax": jax.__version__,
         **res,
         "summary": summary,
-        "per_run": {
-            k: (
-                {f: np.asarray(v[f]).tolist() for f in FLAGS}
-                if k == "env_term_flags"
-                else np.asarray(per_run[k]).tolist()
-            )
-            for k, v in per_run.items()
-        },
+        "per_run": per_run_lists(per_run),
     }
     out = args.out or RESULTS / f"{args.disturbances}_seed{args.seed}_n{args.runs}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
