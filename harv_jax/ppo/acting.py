@@ -5,6 +5,12 @@ Environment interface (gymnax style, single env; the trainer vmaps it): ``env.re
 auto-reset inside ``step``, ``info["truncation"]`` (time limit; the episode is bootstrapped from
 ``V(info["final_obs"])``) and ``info["final_obs"]`` (last observation of the episode that just ended).
 
+Asymmetric actor-critic: an env may also define ``critic_observation(state) -> [O]``, what the critic sees
+in place of the policy's observation (same size and layout, e.g. the true state behind a policy that
+observes through sensors and a filter), and then puts ``info["final_critic_obs"]`` beside ``final_obs``.
+The trainer evaluates the value function on it (normalised with the policy's statistics); an env without it
+(``critic_observation`` absent or None) trains the critic on the policy's observation.
+
 Episode metrics: an ``EpisodeMetricsFn`` maps one env's ``info`` to a dict of scalars; the trainer averages
 it over the episodes that end in a period (``episode/<name>``) and [`make_evaluate`][] records it at each
 episode's end. The task side provides it (for the HARV env ``harv_jax.env.episode_metrics``); the default,
@@ -25,7 +31,7 @@ from harv_jax.ppo.networks import PPONetworks, PPOParams, postprocess
 #: One env's ``info`` -> dict of scalar episode metrics.
 EpisodeMetricsFn = Callable[[dict[str, Any]], dict[str, jax.Array]]
 #: info entries that are not per-episode statistics.
-_RESERVED_INFO = ("truncation", "final_obs")
+_RESERVED_INFO = ("truncation", "final_obs", "final_critic_obs")
 
 
 def env_sizes(env: Any, env_params: Any) -> tuple[int, int]:
@@ -38,6 +44,12 @@ def env_sizes(env: Any, env_params: Any) -> tuple[int, int]:
     if act_size is None:
         raise ValueError("env must define action_size")
     return int(obs_size), int(act_size)
+
+
+def critic_observer(env: Any) -> Callable[[Any], jax.Array] | None:
+    """The env's ``critic_observation(state) -> [O]`` (module docstring), or None: the critic sees the
+    policy's observation."""
+    return getattr(env, "critic_observation", None)
 
 
 def episode_length(env: Any) -> int:

@@ -103,6 +103,8 @@ class PPOBatch(NamedTuple):
         target: [M] value target (lambda-return).
         term_data: each loss term's per-transition data [M, ...] (``LossTerm.transition_data``; None: none).
         term_samples: each loss term's sample for this minibatch (``LossTerm.samples``; None: none).
+        critic_obs: [M, O] the critic's input (already normalised) where it differs from the policy's
+            (an asymmetric actor-critic, ``harv_jax.ppo.acting``), else None.
     """
 
     obs: jax.Array
@@ -113,6 +115,7 @@ class PPOBatch(NamedTuple):
     target: jax.Array
     term_data: tuple[Any, ...] = ()
     term_samples: tuple[Any, ...] = ()
+    critic_obs: Any = None
 
 
 class PPOLossSettings(NamedTuple):
@@ -158,7 +161,8 @@ def ppo_loss(
 
     ``loss = -actor * mean(min(rho A, clip(rho, 1-eps, 1+eps) A)) + vf_coef * 0.5 * mean((target - V)^2)
     - actor * ent_coef * mean(entropy) + sum_k coef_k * term_k``; with ``clip_value_eps`` the value error
-    is the max of the unclipped and the clipped (``V_old + clip(V - V_old, +-eps)``) squared errors.
+    is the max of the unclipped and the clipped (``V_old + clip(V - V_old, +-eps)``) squared errors; ``V``
+    is evaluated on ``batch.critic_obs`` where given (an asymmetric actor-critic), else on ``batch.obs``.
     Advantages are standardised over the minibatch when ``normalize_advantage``. Each term
     ([`LossTerm`][harv_jax.ppo.loss_terms.LossTerm]) is evaluated from the policy mean of the same forward
     pass, on its entries of ``batch.term_data`` and ``batch.term_samples``; its metrics join the PPO ones,
@@ -176,7 +180,7 @@ def ppo_loss(
         (scalar loss, metrics dict of scalars).
     """
     s = settings
-    mean, log_std, value = networks.policy_and_value(params, batch.obs)
+    mean, log_std, value = networks.policy_and_value(params, batch.obs, batch.critic_obs)
     log_prob = gaussian_log_prob(mean, log_std, batch.raw_action)
     log_ratio = log_prob - batch.log_prob
     ratio = jnp.exp(log_ratio)

@@ -130,15 +130,19 @@ class PPONetworks(NamedTuple):
         """obs [..., O] (already normalised) -> value [...] (scaled-reward units)."""
         return self.critic.apply(params.value, obs)
 
-    def policy_and_value(self, params: PPOParams, obs: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
-        """obs [..., O] -> (mean [..., A], log_std [..., A], value [...]) for a training batch.
+    def policy_and_value(
+        self, params: PPOParams, obs: jax.Array, critic_obs: jax.Array | None = None
+    ) -> tuple[jax.Array, jax.Array, jax.Array]:
+        """obs [..., O] -> (mean [..., A], log_std [..., A], value [...]) for a training batch; the value at
+        ``critic_obs`` [..., O] where given (an asymmetric actor-critic), else at ``obs``.
 
         Equal to [`policy`][] and [`value`][] to float rounding, computed feature-major by
         [`mlp_feature_major`][] (faster gradients on CPU, see there).
         """
         mean = mlp_feature_major(params.policy["params"]["mlp"], obs)
         log_std = jnp.broadcast_to(params.policy["params"]["log_std"], mean.shape)
-        value = mlp_feature_major(params.value["params"]["mlp"], obs)[..., 0]
+        value = mlp_feature_major(params.value["params"]["mlp"], obs if critic_obs is None else critic_obs)
+        value = value[..., 0]
         return mean, log_std, value
 
 

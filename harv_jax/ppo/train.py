@@ -32,6 +32,7 @@ from harv_jax.ppo import normalize as obs_norm
 from harv_jax.ppo import sharding, shuffle
 from harv_jax.ppo.acting import (
     EpisodeMetricsFn,
+    critic_observer,
     default_episode_metrics,
     env_info_keys,
     env_sizes,
@@ -110,6 +111,7 @@ def make_train(
     mb_size = ppo_config.minibatch_size(cfg)
     clip_value = cfg.clip_value_eps if cfg.clip_value_eps > 0 else None
     batch_sharding = sharding.batch_sharding(mesh)
+    critic_fn = critic_observer(env)  # None: the critic sees the policy's observation
 
     terms = tuple(terms)
     missing = [n for n in config_term_names(cfg) if n not in [t.name for t in terms]]
@@ -131,6 +133,12 @@ def make_train(
 
     def normalise(normalizer: obs_norm.RunningStats, obs: jax.Array) -> jax.Array:
         return obs_norm.normalize(normalizer, obs) if cfg.normalize_observations else obs
+
+    def critic_input(normalizer: obs_norm.RunningStats, env_state: Any, obs_in: jax.Array) -> jax.Array:
+        """The critic's (normalised) input for the envs' states: the policy's ``obs_in`` or the env's own."""
+        if critic_fn is None:
+            return obs_in
+        return normalise(normalizer, jax.vmap(critic_fn)(env_state).astype(jnp.float32))
 
     def init_one(key: jax.Array, params: PPOParams, env_params: Any) -> TrainingState:
         _, key_env, key_train = jax.random.split(key, 3)
@@ -174,7 +182,8 @@ def make_train(
             mean, log_std = networks.policy(params, obs_in)
             raw = sample_raw_action(key_act, mean, log_std)
             log_prob = gaussian_log_prob(mean, log_std, raw)
-            value = networks.value(params, obs_in)
+            critic_in = critic_input(normalizer, env_state, obs_in)
+            value = networks.value(params, critic_in)
             next_obs, env_state, reward, done, info = jax.vmap(env.step, in_axes=(0, 0, 0, None))(
                 jax.random.split(key_env, n_envs), env_state, postprocess(raw), env_params
             )
@@ -182,7 +191,8 @@ def make_train(
             trunc = info["truncation"].astype(jnp.float32)
             ended = jnp.maximum(done.astype(jnp.float32), trunc)
             term = ended * (1.0 - trunc)
-            final_value = networks.value(params, normalise(normalizer, info["final_obs"].astype(jnp.float32)))
+            final_key = "final_obs" if critic_fn is None else "final_critic_obs"
+            final_value = networks.value(params, normalise(normalizer, info[final_key].astype(jnp.float32)))
             ep_ret = ep_ret + reward
             ep_len = ep_len + 1
             ep = dict(ep)
@@ -195,7 +205,19 @@ def make_train(
             ep_ret = ep_ret * (1.0 - ended)
             ep_len = jnp.where(ended > 0, 0, ep_len)
             kept = tuple(t.step_data(info) for t in terms)
-            transition = Rollout(obs_in, raw, log_prob, value, reward, term, trunc, final_value, obs, kept)
+            transition = Rollout(
+                obs_in,
+                raw,
+                log_prob,
+                value,
+                reward,
+                term,
+                trunc,
+                final_value,
+                obs,
+                kept,
+                None if critic_fn is None else critic_in,
+            )
             return (env_state, next_obs.astype(jnp.float32), ep_ret, ep_len, ep), transition
 
         carry0 = (state.env_state, state.obs, state.episode_return, state.episode_length, ep0)
@@ -222,7 +244,8 @@ def make_train(
     ) -> tuple[TrainingState, Metrics]:
         key, key_rollout, key_sgd = jax.random.split(state.key, 3)
         state, traj, ep = rollout(state, key_rollout, env_params)
-        last_value = networks.value(state.params, normalise(state.normalizer, state.obs))
+        last_in = critic_input(state.normalizer, state.env_state, normalise(state.normalizer, state.obs))
+        last_value = networks.value(state.params, last_in)
         next_values = successor_values(
             traj.value, last_value, traj.final_value, traj.termination, traj.truncation
         )
@@ -243,7 +266,16 @@ def make_train(
             for t, kept in zip(terms, traj.term_data, strict=True)
         )
         # [T, N, ...] -> env-major [N * T, ...] so that the sharded env axis stays the leading block.
-        data = PPOBatch(traj.obs, traj.raw_action, traj.log_prob, traj.value, advantages, targets, term_data)
+        data = PPOBatch(
+            traj.obs,
+            traj.raw_action,
+            traj.log_prob,
+            traj.value,
+            advantages,
+            targets,
+            term_data,
+            critic_obs=traj.critic_obs,
+        )
         weights = loss_weights(state.update_step)
         data = jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1).reshape((n_batch,) + x.shape[2:]), data)
         # per-minibatch samples of the terms' inputs [epochs, minibatches, mb_size, ...]

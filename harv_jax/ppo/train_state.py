@@ -59,6 +59,7 @@ class Rollout(NamedTuple):
     final_value: jax.Array  # [] V(final_obs), used where the episode ended
     raw_obs: jax.Array  # [O] unnormalised observation (for the running statistics)
     term_data: tuple[Any, ...] = ()  # what each loss term keeps of the step's info (``LossTerm.step_data``)
+    critic_obs: Any = None  # [O] the critic's input (normalised) where the env has one, else None
 
 
 class Trainer(NamedTuple):

@@ -20,7 +20,8 @@ def make_harv_env(
     """(env, env_params) of a run: the recovery env of ``spec.env``, with the hybrid law inside its step
     (``spec.loop``: ``harv_jax.training.in_loop``) or a teacher whose action labels every step
     (``spec.teacher``: ``harv_jax.training.teacher``), the policy's observation through its measurement
-    path (``spec.measurement_path``: ``harv_jax.training.measured_env``). With spin resets on
+    path (``spec.measurement_path``: ``harv_jax.training.measured_env``), the critic on the true state with
+    ``spec.critic`` ``privileged``. With spin resets on
     (``spin.reset_prob`` > 0) the spin bank is ``spin_bank`` or, if None, made here from the ``[spin]``
     table.
 
@@ -37,5 +38,5 @@ def make_harv_env(
     if spec.teacher is not None:
         env = make_teacher_env(env, build_controller(spec.teacher), spec.teacher, spec.teacher_model)
     if spec.path is not None:  # the policy observes through its measurement path; the teacher the true state
-        env = make_measured_env(env, spec.path)
+        env = make_measured_env(env, spec.path, privileged_critic=spec.critic == "privileged")
     return env, spec.env.params(spin_bank)

@@ -11,7 +11,10 @@ teacher's labels stay on the true state (privileged: the env, and ``training.tea
 see the air data without noise).
 
 In a preset: ``[env] measurement_path = "lp2"`` (``obsHZ``, ``esoHZ``); the run's policies carry the path in
-their metadata and ``--controller rl``/``hybrid`` fly them behind it.
+their metadata and ``--controller rl``/``hybrid`` fly them behind it. With ``[env] critic = "privileged"``
+the critic sees the true state instead (an asymmetric actor-critic: the env's ``critic_observation``, the
+observation the policy would get from perfect sensors without the path, ``harv_jax.ppo.acting``); the
+policy, and so what is saved and flown, is the same network either way.
 """
 
 from __future__ import annotations
@@ -33,6 +36,10 @@ from harv_jax.training.in_loop import InLoopState
 MEASUREMENT_PATH_KEY = "measurement_path"
 #: ``info`` key of the estimate the policy saw.
 SEEN_KEY = "x_seen"
+#: Key of what the critic observes in a run's env settings (absent: the policy's observation).
+CRITIC_KEY = "critic"
+#: What the critic may observe: the policy's observation, or the true state (asymmetric actor-critic).
+CRITICS = ("actor", "privileged")
 
 
 class MeasuredEnv(NamedTuple):
@@ -48,6 +55,7 @@ class MeasuredEnv(NamedTuple):
     measurement_path: dict[str, Any]
     observation_size: int
     action_size: int
+    critic_observation: Any = None  # state -> [O] the true state's observation (privileged critic) or None
 
 
 def _capture() -> Controller:
@@ -69,9 +77,17 @@ def plain_state(state: Any) -> Any:
     return state
 
 
-def make_measured_env(env: Any, path: MeasurementPath) -> MeasuredEnv:
-    """Wrap ``env`` (the plain env or a teacher wrapper) so that the policy observes through ``path``."""
+def true_observation(state: Any) -> jnp.ndarray:
+    """[O] the observation of a wrapper state's true (air-data) state, without noise or path."""
+    es = plain_state(state)
+    return finish_observation(clean_observation(es.wind, es.target_rad))
+
+
+def make_measured_env(env: Any, path: MeasurementPath, privileged_critic: bool = False) -> MeasuredEnv:
+    """Wrap ``env`` (the plain env or a teacher wrapper) so that the policy observes through ``path``; with
+    ``privileged_critic`` the env offers the critic the true state's observation ([`true_observation`][])."""
     path_ctrl = with_measurement_path(_capture(), path)
+    critic = true_observation if privileged_critic else None
 
     def observe(pstate: Any, inner: Any, key: jax.Array) -> tuple[jnp.ndarray, Any]:
         es = plain_state(inner)
@@ -103,7 +119,7 @@ def make_measured_env(env: Any, path: MeasurementPath) -> MeasuredEnv:
     def reset_to(key: jax.Array, x_wind: jnp.ndarray, target_rad: jnp.ndarray, params: Any):
         return _start(inner_reset_to(key, x_wind, target_rad, params)[1], params, key)
 
-    step = with_auto_reset(step_no_reset, reset)
+    step = with_auto_reset(step_no_reset, reset, critic)
 
     def batch_step(keys: jax.Array, states: InLoopState, actions: jnp.ndarray, params: Any):
         return jax.vmap(step, in_axes=(0, 0, 0, None))(keys, states, actions, params)
@@ -119,4 +135,5 @@ def make_measured_env(env: Any, path: MeasurementPath) -> MeasuredEnv:
         measurement_path=path_record(path),
         observation_size=env.observation_size,
         action_size=env.action_size,
+        critic_observation=critic,
     )

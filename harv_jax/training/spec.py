@@ -6,6 +6,7 @@ hook, the outputs); its cross-field rules are checked here, once, when it is mad
 - behaviour cloning (``bc_coef`` or ``bc_coef_end`` > 0) needs a teacher or demonstrations, and
   demonstrations are cloned only with it;
 - a teacher cannot be combined with a controller in the loop, and ``teacher_model`` needs a teacher;
+- a privileged critic needs a measurement path;
 - ``--target-recovery`` is in (0, 1].
 
 The spec is written into the run folder (``config.json``: preset, PPO config, env settings with the wrapper
@@ -27,10 +28,10 @@ from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo.config import PPOConfig
 from harv_jax.task.measurement_path import MeasurementPath
 from harv_jax.training.in_loop import LOOP_KEY, parse_loop
-from harv_jax.training.measured_env import MEASUREMENT_PATH_KEY
+from harv_jax.training.measured_env import CRITIC_KEY, CRITICS, MEASUREMENT_PATH_KEY
 from harv_jax.training.teacher import TEACHER_KEY, TEACHER_MODEL_KEY, TEACHER_MODELS
 
-WRAPPER_KEYS = (LOOP_KEY, TEACHER_KEY, TEACHER_MODEL_KEY, MEASUREMENT_PATH_KEY)
+WRAPPER_KEYS = (LOOP_KEY, TEACHER_KEY, TEACHER_MODEL_KEY, MEASUREMENT_PATH_KEY, CRITIC_KEY)
 
 
 def check_measurement_path(text: Any, loop: str) -> None:
@@ -41,6 +42,18 @@ def check_measurement_path(text: Any, loop: str) -> None:
     if parse_measurement_path(text, "[env] measurement_path") is not None and loop != "none":
         raise UsageError(
             f"[env] measurement_path {text!r} cannot be combined with --in-loop; drop one of them"
+        )
+
+
+def check_critic(critic: Any, measurement_path: Any) -> None:
+    """``[env] critic``: ``actor`` or ``privileged``; the privileged critic needs a measurement path (what
+    the critic sees beyond the policy is the state before the sensors and the path)."""
+    if critic not in CRITICS:
+        raise UsageError(f"[env] critic {critic!r}; allowed: {', '.join(CRITICS)}")
+    if critic == "privileged" and measurement_path == "none":
+        raise UsageError(
+            '[env] critic "privileged" sees the true state behind a measurement path, and this run has '
+            'none; set [env] measurement_path (e.g. "lp2") or critic = "actor"'
         )
 
 
@@ -79,6 +92,7 @@ def check_env_table(env_table: Any) -> EnvSettings:
     check_measurement_path(
         env_table.get(MEASUREMENT_PATH_KEY, "none"), parse_loop(env_table.get(LOOP_KEY, "none"))
     )
+    check_critic(env_table.get(CRITIC_KEY, "actor"), env_table.get(MEASUREMENT_PATH_KEY, "none"))
     return env
 
 
@@ -99,6 +113,8 @@ class TrainSpec:
         teacher_model_set: whether ``teacher_model`` was given (it is recorded only then).
         measurement_path: ``none`` or the path the policy observes through (``[env] measurement_path``:
             ``lpHZ``, ``obsHZ``, ``esoHZ``; ``harv_jax.training.measured_env``).
+        critic: what the critic observes, ``actor`` (the policy's observation) or ``privileged`` (the true
+            state; ``[env] critic``, with a measurement path).
     """
 
     preset: str
@@ -112,10 +128,12 @@ class TrainSpec:
     demos_sha256: str | None = None
     teacher_model_set: bool = False
     measurement_path: str = "none"
+    critic: str = "actor"
 
     def __post_init__(self) -> None:
         check_wrappers(self.loop, self.teacher, self.teacher_model, self.teacher_model_set)
         check_measurement_path(self.measurement_path, self.loop)
+        check_critic(self.critic, self.measurement_path)
         cfg = self.ppo
         if (cfg.bc_coef > 0 or cfg.bc_coef_end > 0) and self.teacher is None and cfg.demos is None:
             raise UsageError(
@@ -169,6 +187,7 @@ class TrainSpec:
             demos_sha256=demos_sha256,
             teacher_model_set=TEACHER_MODEL_KEY in env_table,
             measurement_path=env_table.get(MEASUREMENT_PATH_KEY, "none"),
+            critic=env_table.get(CRITIC_KEY, "actor"),
         )
 
     def env_settings(self) -> dict[str, Any]:
@@ -183,6 +202,8 @@ class TrainSpec:
             out[TEACHER_MODEL_KEY] = self.teacher_model
         if self.measurement_path != "none":
             out[MEASUREMENT_PATH_KEY] = self.measurement_path
+        if self.critic != "actor":
+            out[CRITIC_KEY] = self.critic
         return out
 
     @property
