@@ -16,7 +16,8 @@ from typing import Any
 
 import typer
 
-from harv_jax.control.registry import DEFAULT_ZETA, ControllerOptions, check_options_apply
+from harv_jax.control.hybrid_settings import DEFAULT_ZETA
+from harv_jax.control.registry import ControllerOptions, check_options_apply
 from harv_jax.errors import UsageError
 from harv_jax.task.disturbance_table import BY_NAME, LEVEL_NAMES
 from harv_jax.task.spec import ALPHA_MAX_RAD, ALPHA_MIN_RAD, RECOVERY_HOLD_S

@@ -15,8 +15,8 @@ config, seed, ``obs_count``). Deterministic action: ``clip(mean, -1, 1)``; stoch
 exp(log_std) * N(0, 1), -1, 1)``.
 
 ``export_stablehlo`` writes the deterministic policy with ``jax.export`` (serialized StableHLO, symbolic
-batch size, weights baked in); [`load_exported`][] reads it back without the model code (both in
-``harv_jax.policy_stablehlo``, re-exported here).
+batch size, weights baked in); ``load_exported`` reads it back without the model code (both in
+``harv_jax.policy_stablehlo``).
 """
 
 from __future__ import annotations
@@ -36,9 +36,7 @@ from flax import traverse_util
 from harv_jax import atomic
 from harv_jax.errors import UsageError
 from harv_jax.guards import MAX_LAYER_WIDTH, check_npz_archive
-from harv_jax.policy_stablehlo import export_available as export_available
-from harv_jax.policy_stablehlo import export_stablehlo as export_stablehlo
-from harv_jax.policy_stablehlo import load_exported as load_exported
+from harv_jax.policies import DEFAULT_SHIPPED, SHIPPED, SHIPPED_PREFIX
 from harv_jax.ppo import normalize as obs_norm
 from harv_jax.ppo.networks import (
     PPONetworks,
@@ -357,9 +355,6 @@ def _load_file(shown: str, path: str, seed: int, mtime_ns: int, size: int) -> Po
     except (KeyError, IndexError, TypeError, ValueError) as e:
         detail = str(e) if isinstance(e, ValueError) else f"{type(e).__name__}: {e}"
         raise UsageError(f"checkpoint {shown!r} is incomplete ({detail})") from None
-
-
-from harv_jax.policies import DEFAULT_POLICY_SPEC, DEFAULT_SHIPPED, SHIPPED, SHIPPED_PREFIX  # noqa: E402,F401
 
 
 def shipped_path(name: str = DEFAULT_SHIPPED) -> Path:

@@ -1057,7 +1057,8 @@ def test_version(monkeypatch, capsys):
 def test_hybrid_config_default_is_the_cli_default():
     from harv_jax.cli_options import controller_options, zeta_option
     from harv_jax.control.hybrid import HybridConfig
-    from harv_jax.control.registry import DEFAULT_ZETA, ControllerOptions
+    from harv_jax.control.hybrid_settings import DEFAULT_ZETA
+    from harv_jax.control.registry import ControllerOptions
 
     assert HybridConfig().schedule == DEFAULT_ZETA == ControllerOptions().zeta
     assert zeta_option().default is None and controller_options(["hybrid"], None, None).zeta == DEFAULT_ZETA

@@ -114,7 +114,7 @@ def test_a_suffix_on_a_policy_that_carries_a_path_is_refused(tmp_path, monkeypat
 
 
 def test_the_stablehlo_export_refuses_a_policy_with_a_path(tmp_path):
-    from harv_jax.policy import export_available, export_stablehlo
+    from harv_jax.policy_stablehlo import export_available, export_stablehlo
 
     if not export_available():
         pytest.skip("jax.export serialization needs flatbuffers")

@@ -290,6 +290,7 @@ def _check_obs_count_in_meta(path, policy_api):
 
 def test_policy_export_roundtrip(trainer, full_run, tmp_path):
     from harv_jax import policy as policy_api
+    from harv_jax import policy_stablehlo
 
     res, run_dir = full_run
     params = jax.tree.map(lambda x: x[1], res.state.params)
@@ -305,8 +306,9 @@ def test_policy_export_roundtrip(trainer, full_run, tmp_path):
     for name in ("count", "mean", "m2"):
         np.testing.assert_allclose(getattr(from_npz.normalizer, name), getattr(normalizer, name), rtol=1e-5)
     _check_obs_count_in_meta(tmp_path / "p.npz", policy_api)
-    if policy_api.export_available():  # jax.export serialization needs flatbuffers
-        exported = policy_api.load_exported(policy_api.export_stablehlo(tmp_path / "p.stablehlo", pol))
+    if policy_stablehlo.export_available():  # jax.export serialization needs flatbuffers
+        saved = policy_stablehlo.export_stablehlo(tmp_path / "p.stablehlo", pol)
+        exported = policy_stablehlo.load_exported(saved)
         np.testing.assert_allclose(exported(obs), want, rtol=1e-5, atol=1e-6)
     ckpt = checkpoint.checkpoint_paths(run_dir / "checkpoints")[-1]
     from_ckpt = policy_api.load(ckpt, seed=1)

@@ -23,7 +23,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from harv_jax.aircraft.params import harv
-from harv_jax.control.hybrid import HybridConfig, HybridGains, default_hybrid_gains, make_hybrid
+from harv_jax.control.hybrid import HybridConfig, default_hybrid_gains, make_hybrid
+from harv_jax.control.hybrid_settings import HybridGains
 from harv_jax.control.registry import ControllerOptions, build_controller
 from harv_jax.dynamics.state import vt_fps
 from harv_jax.evaluation.closed_loop import closed_loop

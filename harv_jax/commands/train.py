@@ -27,7 +27,7 @@ from harv_jax.cli_options import aircraft_option, force_option, real_number, who
 from harv_jax.errors import UsageError
 from harv_jax.training.run import check_periods, check_run_flags, run_train
 
-__all__ = ["check_periods", "check_run_flags", "preset_defaults", "register", "run_train"]
+__all__ = ["preset_defaults", "register"]
 
 
 @functools.cache

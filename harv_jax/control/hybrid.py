@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from typing import Literal
 
 import jax
 import jax.numpy as jnp
@@ -45,8 +44,8 @@ from flax import struct
 
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
-from harv_jax.control.gate import GateGains, certificate_holds, default_gate_gains
-from harv_jax.control.registry import DEFAULT_ZETA
+from harv_jax.control.gate import certificate_holds, default_gate_gains
+from harv_jax.control.hybrid_settings import DEFAULT_ZETA, ZETA_SCHEDULES, HybridGains, ZetaScheduleName
 from harv_jax.control.safety import cap_authority, filter_command, limit_box
 from harv_jax.control.scheduling import (
     SimplexGains,
@@ -56,9 +55,8 @@ from harv_jax.control.scheduling import (
     simplex_init,
     zeta_init,
 )
-from harv_jax.control.smc import SMCConfig, SMCGains, default_gains, smc_command, update_integral
+from harv_jax.control.smc import SMCConfig, default_gains, smc_command, update_integral
 from harv_jax.control.supervisor import (
-    SupervisorGains,
     SupervisorState,
     default_supervisor_gains,
     supervisor_init,
@@ -72,40 +70,6 @@ from harv_jax.task.spec import (
     V_MAX_FPS,
     V_MIN_FPS,
 )
-
-ZetaScheduleName = Literal["hysteresis", "continuous", "gated", "simplex", "always", "never"]
-ZETA_SCHEDULES: tuple[str, ...] = ("hysteresis", "continuous", "gated", "simplex", "always", "never")
-
-
-@struct.dataclass
-class HybridGains:
-    """Traced settings of the hybrid controller (sweep them without recompiling).
-
-    Attributes:
-        smc: the SMC gains of the feedback term.
-        e_on_rad: [3] outer tube radii: zeta -> 1 when any |e_i| exceeds its radius, rad.
-        e_off_rad: [3] inner tube radii: zeta -> 0 when all |e_i| are below theirs, rad.
-        zeta_min_dwell_s: minimum time between two hysteresis switches, s.
-        zeta_floor: lower bound of zeta for the hysteresis and continuous schedules, in [0, 1]:
-            zeta = floor + (1 - floor) zeta_schedule. The paper's stability analysis assumes zeta in
-            (0, 1]; its tube sets zeta = 0 inside (floor 0). Default ``DEFAULT_ZETA_FLOOR``.
-        authority_frac: [3] cap of |u_RL| as a fraction of each channel's limits, in (0, 1].
-        gate: GateGains of the ``gated`` schedule (``harv_jax.control.gate``; every schedule logs its
-            certificate).
-        supervisor: SupervisorGains.
-        simplex: SimplexGains of the ``simplex`` schedule.
-    """
-
-    smc: SMCGains
-    e_on_rad: jnp.ndarray
-    e_off_rad: jnp.ndarray
-    zeta_min_dwell_s: jnp.ndarray
-    zeta_floor: jnp.ndarray
-    authority_frac: jnp.ndarray
-    gate: GateGains
-    supervisor: SupervisorGains
-    simplex: SimplexGains
-
 
 #: The paper's tube: e_on = 0.05 rad on every channel (e_off is not given; 0.02 rad here).
 PAPER_E_ON_RAD = (0.05, 0.05, 0.05)

@@ -23,6 +23,7 @@ import dataclasses
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
 
+from harv_jax.control.hybrid_settings import DEFAULT_ZETA, ZETA_SCHEDULES
 from harv_jax.errors import UsageError
 from harv_jax.task.measurement_path import (
     ESO_SUFFIX,
@@ -38,9 +39,6 @@ from harv_jax.task.measurement_path import (
 if TYPE_CHECKING:  # the table stays importable without jax (the CLI checks its arguments first)
     from harv_jax.control.base import Controller
 
-#: The hybrid's default zeta schedule: the policy alone until a monitor hands over to the SMC for good
-#: (``control.scheduling.simplex_step``; ``experiments/hybrid_simplex/README.md``).
-DEFAULT_ZETA = "simplex"
 #: Option names a builder may read (fields of ControllerOptions).
 OPTION_NAMES = ("policy", "zeta", "switching")
 
@@ -126,7 +124,7 @@ def _build_rl(opts: ControllerOptions) -> Controller:
 
 
 def _build_hybrid(opts: ControllerOptions) -> Controller:
-    from harv_jax.control.hybrid import ZETA_SCHEDULES, HybridConfig, make_hybrid
+    from harv_jax.control.hybrid import HybridConfig, make_hybrid
 
     pol = _policy(opts.policy)
     if opts.zeta not in ZETA_SCHEDULES:

@@ -16,11 +16,12 @@ gains of the certificate it logs, how the intervention window is kept and the sc
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 import jax.numpy as jnp
 
 from harv_jax.control.gate import GateGains, default_gate_gains, gate
+from harv_jax.control.hybrid_settings import HybridGains
 from harv_jax.control.scheduling import (
     SIMPLEX_REASONS,
     SimplexState,
@@ -33,9 +34,6 @@ from harv_jax.control.smc import SMCConfig, SMCGains, SMCTerms
 from harv_jax.control.supervisor import SupervisorState, outside_box, record_intervention, supervise
 from harv_jax.dynamics.state import vt_fps
 from harv_jax.task.criteria import omega_norm_radps, tracking_errors
-
-if TYPE_CHECKING:
-    from harv_jax.control.hybrid import HybridGains
 
 
 class Watch(NamedTuple):

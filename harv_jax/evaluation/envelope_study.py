@@ -17,7 +17,7 @@ import numpy as np
 
 from harv_jax import atomic
 from harv_jax.control.base import Controller
-from harv_jax.control.registry import DEFAULT_ZETA
+from harv_jax.control.hybrid_settings import DEFAULT_ZETA
 from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
 from harv_jax.evaluation.envelope_map import EnvelopeGrid, EnvelopeMap
 from harv_jax.task.spec import DT_S

@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from harv_jax import atomic
-from harv_jax.control.registry import DEFAULT_ZETA, ControllerOptions
+from harv_jax.control.hybrid_settings import DEFAULT_ZETA
+from harv_jax.control.registry import ControllerOptions
 from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
 from harv_jax.task.spec import DT_S
 

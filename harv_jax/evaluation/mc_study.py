@@ -17,7 +17,7 @@ import numpy as np
 
 from harv_jax import atomic
 from harv_jax.control.base import Controller
-from harv_jax.control.registry import DEFAULT_ZETA
+from harv_jax.control.hybrid_settings import DEFAULT_ZETA
 from harv_jax.evaluation.disturbance_spec import DisturbanceSpec, describe_disturbances
 from harv_jax.evaluation.monte_carlo import MCRunOutput
 from harv_jax.numfmt import fmt_num

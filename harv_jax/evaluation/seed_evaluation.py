@@ -38,7 +38,8 @@ import numpy as np
 from harv_jax import atomic
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.hybrid import HybridConfig, make_hybrid
-from harv_jax.control.registry import DEFAULT_ZETA, build_controller, policy_path, with_measurement_path
+from harv_jax.control.hybrid_settings import DEFAULT_ZETA
+from harv_jax.control.registry import build_controller, policy_path, with_measurement_path
 from harv_jax.control.rl import make_rl_controller
 from harv_jax.evaluation.closed_loop import closed_loop, score
 from harv_jax.evaluation.disturbance_spec import DisturbanceSpec, parse_disturbances

@@ -34,7 +34,8 @@ from harv_jax.ppo.acting import EpisodeMetricsFn
 from harv_jax.ppo.config import PPOConfig
 from harv_jax.ppo.networks import PPOParams
 from harv_jax.ppo.sharding import put_global
-from harv_jax.ppo.train import Trainer, TrainingState, make_train, seed_keys
+from harv_jax.ppo.train import make_train, seed_keys
+from harv_jax.ppo.train_state import Trainer, TrainingState
 
 
 class TrainResult(NamedTuple):

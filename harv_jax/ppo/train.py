@@ -58,7 +58,7 @@ from harv_jax.ppo.networks import (
 )
 from harv_jax.ppo.train_state import Metrics, Rollout, Trainer, TrainingState
 
-__all__ = ["Metrics", "Rollout", "Trainer", "TrainingState", "make_optimizer", "make_train", "seed_keys"]
+__all__ = ["BoundPeriod", "make_optimizer", "make_train", "seed_keys"]
 
 
 def make_optimizer(cfg: PPOConfig) -> optax.GradientTransformation:

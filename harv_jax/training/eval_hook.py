@@ -18,7 +18,7 @@ from harv_jax.evaluation.policy_eval import make_eval_batch, make_policy_eval, s
 from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo import normalize as obs_norm
 from harv_jax.ppo.networks import postprocess
-from harv_jax.ppo.train import Trainer, TrainingState
+from harv_jax.ppo.train_state import Trainer, TrainingState
 from harv_jax.task.measurement_path import path_record
 from harv_jax.training import outputs
 from harv_jax.training.spec import TrainSpec

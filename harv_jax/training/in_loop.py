@@ -22,7 +22,8 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from harv_jax.control.hybrid import ZETA_SCHEDULES, HybridConfig, HybridGains, HybridState, make_hybrid
+from harv_jax.control.hybrid import HybridConfig, HybridState, make_hybrid
+from harv_jax.control.hybrid_settings import ZETA_SCHEDULES, HybridGains
 from harv_jax.control.smc import SMCConfig
 from harv_jax.env import Env, EnvState
 from harv_jax.env.auto_reset import with_auto_reset

@@ -18,7 +18,7 @@ from typing import Any
 import jax
 import numpy as np
 
-from harv_jax import atomic
+from harv_jax import atomic, policy_stablehlo
 from harv_jax import policy as policy_api
 from harv_jax.env import EnvParams
 from harv_jax.env.env_settings import EnvSettings
@@ -26,7 +26,7 @@ from harv_jax.evaluation import seed_stats
 from harv_jax.policy import Policy, make_policy, select_seed
 from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo.config import PPOConfig
-from harv_jax.ppo.train import Trainer, TrainingState
+from harv_jax.ppo.train_state import Trainer, TrainingState
 
 #: Episode metrics summarised in ``summary.json`` (first and last period).
 SUMMARY_METRICS = ("episode_return", "episode/recovered", "episode/final_omega_radps", "episode/terminated")
@@ -140,8 +140,8 @@ def export_policies(
     pols = export_seed_policies(pdir, state, trainer, cfg, steps, loop, demos, measurement_path)
     policy_api.export_npz(pdir / "policy.npz", pols[best])
     # jax.export serialization needs flatbuffers; a policy behind a measurement path is flown by harv_jax only
-    if policy_api.export_available() and pols[best].meta.get("measurement_path") is None:
-        policy_api.export_stablehlo(pdir / "policy.stablehlo", pols[best])
+    if policy_stablehlo.export_available() and pols[best].meta.get("measurement_path") is None:
+        policy_stablehlo.export_stablehlo(pdir / "policy.stablehlo", pols[best])
     return best
 
 

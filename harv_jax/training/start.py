@@ -23,7 +23,8 @@ from harv_jax.ppo.config import PPOConfig
 from harv_jax.ppo.loss_terms import terms_from_config
 from harv_jax.ppo.networks import PPOParams
 from harv_jax.ppo.runner import check_init_policy
-from harv_jax.ppo.train import Trainer, make_train
+from harv_jax.ppo.train import make_train
+from harv_jax.ppo.train_state import Trainer
 from harv_jax.task.spaces import ACTION_SIZE, OBSERVATION_SIZE
 from harv_jax.training.demos import RunDemos, load_run_demos
 from harv_jax.training.environment import make_harv_env
