@@ -7,7 +7,8 @@ Run from the repository root (``python tools/house_counts.py [--out FILE]``); it
   ``[reward]``, ``[randomization]``, ``[spin]``, ``[eval]``) and those that no shipped preset sets;
 - ``make_train``'s feature switches (local booleans named ``use_*`` and the ``demo`` argument) and length;
   ``ppo_loss``'s parameters;
-- modules and lines of ``harv_jax/``; files and MB of ``experiments/``; the longest study README;
+- modules and lines of ``harv_jax/``; files and MB of ``experiments/`` (its committed files); the longest
+  study README;
 - import loops (strongly connected components of the module import graph, imports inside functions
   included), re-exports (names imported from another ``harv_jax`` module and listed in ``__all__`` or marked
   ``noqa: F401``) and the imports elsewhere that go through them; imports inside functions.
@@ -280,9 +281,14 @@ def code_counts() -> dict[str, object]:
 
 def experiment_counts() -> dict[str, object]:
     exp = ROOT / "experiments"
-    files = [p for p in exp.rglob("*") if p.is_file()]
+    listed = subprocess.run(
+        ["git", "ls-files", "experiments"], cwd=ROOT, capture_output=True, text=True, check=False
+    ).stdout.split()
+    # the committed files (as a clean clone has them); the folder's files where git is not at hand
+    files = [ROOT / f for f in listed] if listed else [p for p in exp.rglob("*") if p.is_file()]
+    files = [p for p in files if p.is_file()]
     readmes = sorted(
-        ((len(p.read_text().splitlines()), str(p.relative_to(ROOT))) for p in exp.rglob("README.md")),
+        ((len(p.read_text().splitlines()), str(p.relative_to(ROOT))) for p in files if p.name == "README.md"),
         reverse=True,
     )
     return {
