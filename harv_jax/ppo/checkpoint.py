@@ -1,8 +1,8 @@
 """Atomic training checkpoints: msgpack (flax.serialization) + fsync + atomic rename. Never pickle.
 
 A checkpoint is one file ``checkpoints/ckpt_<period>.msgpack`` holding every leaf of the
-[`TrainingState`][harv_jax.ppo.train_state.TrainingState] (params, optimizer state, normaliser, env state, PRNG
-keys as raw key data, counters) with its tree path, shape and dtype; the PPO config; the env config; the
+[`TrainingState`][harv_jax.ppo.train_state.TrainingState] (params, optimizer state, normaliser, env state,
+PRNG keys as raw key data, counters) with its tree path, shape and dtype; the PPO config; the env config; the
 period index and the metrics history. It is written to a temporary file in the same folder, flushed, fsynced
 and renamed over the final name, so a SIGKILL leaves either the previous checkpoint or the new one, never a
 torn file. The newest ``KEEP`` checkpoints are kept. Each file carries a SHA-256 of its header and leaves,
