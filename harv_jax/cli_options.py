@@ -23,8 +23,8 @@ from harv_jax.task.disturbance_table import BY_NAME, LEVEL_NAMES
 from harv_jax.task.spec import ALPHA_MAX_RAD, ALPHA_MIN_RAD, RECOVERY_HOLD_S
 
 POLICY_HELP = (
-    "rl/hybrid policy: run folder, .npz, checkpoint\\[@seed], shipped:teacher (default), shipped:fast, "
-    "shipped:recovery, shipped:paper-full, shipped:paper-partial."
+    "rl/hybrid policy: run folder, .npz, checkpoint\\[@seed], shipped:robust (default), shipped:teacher, "
+    "shipped:fast, shipped:recovery, shipped:paper-full, shipped:paper-partial."
 )
 ZETA_HELP = (
     "Hybrid zeta schedule: simplex (the policy alone until a monitor hands over to the SMC for good), "
@@ -54,7 +54,7 @@ def real_number(text: str) -> float:
 
 
 def policy_option():
-    """``--policy`` (default None = the default shipped policy, ``shipped:teacher``)."""
+    """``--policy`` (default None = the default shipped policy, ``shipped:robust``)."""
     return typer.Option(None, help=POLICY_HELP)
 
 

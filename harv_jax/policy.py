@@ -368,9 +368,9 @@ def shipped_path(name: str = DEFAULT_SHIPPED) -> Path:
 
 def resolve_policy(spec: str | Path | None) -> Policy:
     """Load a policy from a user's path, or ``None``/``"shipped"`` (the default shipped policy,
-    ``shipped:teacher``), or ``"shipped:<name>"`` (``teacher``, ``fast``, ``recovery``, ``paper-full``,
-    ``paper-partial``). A path may end in ``@<seed>`` to pick a learner of a multi-seed checkpoint
-    (``ckpt_000010.msgpack@2``)."""
+    ``shipped:robust``), or ``"shipped:<name>"`` (``robust``, ``teacher``, ``fast``, ``recovery``,
+    ``paper-full``, ``paper-partial``). A path may end in ``@<seed>`` to pick a learner of a multi-seed
+    checkpoint (``ckpt_000010.msgpack@2``)."""
     text = SHIPPED_PREFIX if spec is None else str(spec)
     if text == SHIPPED_PREFIX or text.startswith(SHIPPED_PREFIX + ":"):
         name = text.partition(":")[2] or DEFAULT_SHIPPED

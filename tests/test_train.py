@@ -355,6 +355,7 @@ def test_presets_load_from_package_data():
         "paper-full",
         "paper-partial",
         "recovery",
+        "robust",
         "smoke",
         "teacher",
     ]
@@ -362,7 +363,8 @@ def test_presets_load_from_package_data():
     assert not (REPO / "experiments" / "presets").exists()
     with pytest.raises(
         UsageError,
-        match="unknown preset .nope.; available: fast, paper-full, paper-partial, recovery, smoke, teacher",
+        match="unknown preset .nope.; available: fast, paper-full, paper-partial, recovery, robust, smoke, "
+        "teacher",
     ):
         presets.load_preset("nope")
 

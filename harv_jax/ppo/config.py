@@ -55,9 +55,6 @@ class PPOConfig:
     bc_coef_end: float = 0.0  # its weight at the end of the run (linear in the update count in between)
     pg_start: float = 0.0  # fraction of the run before the policy-gradient term turns on (BC and critic only)
     demos: str | None = None  # demonstrations (.npz) to clone with the bc_coef schedule; None: none
-    smooth_temporal_coef: float = 0.0  # weight of |mu(s_t) - mu(s_t+1)|_1 within an episode (CAPS); 0: off
-    smooth_spatial_coef: float = 0.0  # weight of |mu(s) - mu(s + noise)|_1 (CAPS); 0: off
-    smooth_spatial_std: float = 0.05  # std of that noise on the normalised observation
 
     def replace(self, **changes: Any) -> PPOConfig:
         """Copy with fields changed, validated."""
@@ -82,15 +79,12 @@ _NONNEG_FLOAT = (
     "ent_coef",
     "bc_coef",
     "bc_coef_end",
-    "smooth_temporal_coef",
-    "smooth_spatial_coef",
 )
 #: Bounds of float settings beyond their sign: an Adam step above 1 or a log std outside these diverges.
 _FLOAT_RANGES = {
     "lr": (0.0, 1.0),
     "init_log_std": (-20.0, 5.0),
     "pg_start": (0.0, 0.99),
-    "smooth_spatial_std": (1e-6, 10.0),
 }
 #: Largest value of an integer setting (beyond it float arithmetic on the derived sizes is inexact).
 MAX_INT_SETTING = 2**53
@@ -129,11 +123,7 @@ def validate(cfg: PPOConfig) -> PPOConfig:
         )
     if cfg.epochs > MAX_EPOCHS:
         raise UsageError(f"--epochs {cfg.epochs} is too large; give a whole number in [1, {MAX_EPOCHS}]")
-    for name in (
-        _POSITIVE_FLOAT
-        + _NONNEG_FLOAT
-        + ("gamma", "gae_lambda", "init_log_std", "pg_start", "smooth_spatial_std")
-    ):
+    for name in _POSITIVE_FLOAT + _NONNEG_FLOAT + ("gamma", "gae_lambda", "init_log_std", "pg_start"):
         v = getattr(cfg, name)
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
             raise UsageError(f"{_flag(name)} {v!r} must be a finite number")
@@ -215,15 +205,11 @@ def from_dict(values: dict[str, Any], base: PPOConfig | None = None, source: str
 
 
 def to_dict(cfg: PPOConfig) -> dict[str, Any]:
-    """Plain JSON-able dict of the config (``demos`` only when set, the smoothness settings only when a
-    smoothness term is on: a run without them records the same config as before they existed)."""
+    """Plain JSON-able dict of the config (``demos`` only when set)."""
     d = dataclasses.asdict(cfg)
     d["hidden_sizes"] = list(cfg.hidden_sizes)
     if d["demos"] is None:
         del d["demos"]
-    if cfg.smooth_temporal_coef == 0 and cfg.smooth_spatial_coef == 0:
-        for name in ("smooth_temporal_coef", "smooth_spatial_coef", "smooth_spatial_std"):
-            del d[name]
     return d
 
 

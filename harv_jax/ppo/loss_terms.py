@@ -1,4 +1,4 @@
-"""Objectives the PPO update adds to its clipped-surrogate loss: behaviour cloning and smoothness.
+"""Objectives the PPO update adds to its clipped-surrogate loss: behaviour cloning, and any term of yours.
 
 The PPO loss ([`ppo_loss`][harv_jax.ppo.losses.ppo_loss]) is ``actor + value`` and the trainer composes
 any number of terms after it, as ``optax.chain`` composes gradient transformations:
@@ -109,17 +109,6 @@ def behaviour_cloning(mean: jax.Array, target: jax.Array) -> jax.Array:
     return jnp.mean(jnp.sum(jnp.square(err) + 0.01 * jnp.square(mean - target), axis=-1))
 
 
-def action_change(mean: jax.Array, other: jax.Array, weight: jax.Array | None = None) -> jax.Array:
-    """``mean(sum(|clip(mu, -1, 1) - clip(mu', -1, 1)|))`` over [M, A] policy means, summed over action
-    components, weighted per row by ``weight`` [M] (a weighted mean; None: all rows): the smoothness terms
-    of CAPS (Mysore et al. 2021) on the actions that fly, with the L1 distance of the control's total
-    variation (its gradient does not vanish as the change gets small, as a squared distance's does)."""
-    change = jnp.sum(jnp.abs(jnp.clip(mean, -1.0, 1.0) - jnp.clip(other, -1.0, 1.0)), axis=-1)
-    if weight is None:
-        return jnp.mean(change)
-    return jnp.sum(weight * change) / jnp.maximum(jnp.sum(weight), 1.0)
-
-
 class BehaviourCloning(LossTerm):
     """Behaviour cloning (DAPG-style) toward action labels the env writes into each step's ``info`` (a
     teacher's) and/or toward demonstration pairs: ``BC = behaviour_cloning(mu(obs), label)`` plus
@@ -197,54 +186,6 @@ class BehaviourCloning(LossTerm):
         return total, parts
 
 
-class TemporalSmoothness(LossTerm):
-    """CAPS temporal smoothness (Mysore et al. 2021): ``action_change(mu(s_t), mu(s_t+1))`` within an
-    episode (the step at which an episode ends is left out). Metric: ``smooth_temporal_loss``."""
-
-    name = "smooth_temporal"
-
-    def __init__(self, coef: float) -> None:
-        self._coef = coef
-
-    def coef(self, frac: jax.Array) -> float:
-        return self._coef
-
-    def transition_data(self, ctx: TermContext) -> tuple[jax.Array, jax.Array]:
-        # obs_{t+1} of the same episode (after an end it is the next episode's reset: masked out)
-        next_obs = jnp.concatenate([ctx.obs[1:], ctx.last_obs[None]], axis=0)
-        return next_obs, 1.0 - jnp.maximum(ctx.termination, ctx.truncation)
-
-    def value(
-        self, params: PPOParams, networks: PPONetworks, mean: jax.Array, data: Any, sample: Any
-    ) -> tuple[jax.Array, dict[str, jax.Array]]:
-        next_obs, mask = data
-        change = action_change(mean, networks.policy(params, next_obs)[0], mask)
-        return change, {"smooth_temporal_loss": change}
-
-
-class SpatialSmoothness(LossTerm):
-    """CAPS spatial smoothness: ``action_change(mu(s), mu(s + std * noise))`` with Gaussian noise on the
-    normalised observation, drawn from ``fold_in(key, 2)``. Metric: ``smooth_spatial_loss``."""
-
-    name = "smooth_spatial"
-
-    def __init__(self, coef: float, std: float) -> None:
-        self._coef, self.std = coef, std
-
-    def coef(self, frac: jax.Array) -> float:
-        return self._coef
-
-    def transition_data(self, ctx: TermContext) -> jax.Array:
-        noise = jax.random.normal(jax.random.fold_in(ctx.key, 2), ctx.obs.shape, ctx.obs.dtype)
-        return ctx.obs + self.std * noise
-
-    def value(
-        self, params: PPOParams, networks: PPONetworks, mean: jax.Array, data: Any, sample: Any
-    ) -> tuple[jax.Array, dict[str, jax.Array]]:
-        change = action_change(mean, networks.policy(params, data)[0])
-        return change, {"smooth_spatial_loss": change}
-
-
 def sample_minibatches(
     key: jax.Array,
     demo: DemoBatch,
@@ -265,15 +206,10 @@ def put_inputs(terms: Sequence[LossTerm], placement: jax.sharding.Sharding) -> t
 
 
 def config_term_names(cfg: Any) -> tuple[str, ...]:
-    """The names of the loss terms a PPO config's settings ask for (``bc``, ``smooth_temporal``,
-    ``smooth_spatial``), in the order they are added."""
+    """The names of the loss terms a PPO config's settings ask for (``bc``), in the order they are added."""
     names = []
     if cfg.bc_coef > 0 or cfg.bc_coef_end > 0:
         names.append(BehaviourCloning.name)
-    if cfg.smooth_temporal_coef > 0:
-        names.append(TemporalSmoothness.name)
-    if cfg.smooth_spatial_coef > 0:
-        names.append(SpatialSmoothness.name)
     return tuple(names)
 
 
@@ -282,7 +218,7 @@ def terms_from_config(
 ) -> tuple[LossTerm, ...]:
     """The loss terms a [`PPOConfig`][harv_jax.ppo.config.PPOConfig] asks for, in the order they are added:
     behaviour cloning (``bc_coef`` -> ``bc_coef_end``, toward the env's ``info[label_key]`` and/or
-    ``demos``), temporal and spatial smoothness (``smooth_*``). None of them: ``()``, the plain PPO loss.
+    ``demos``). None of them: ``()``, the plain PPO loss.
 
     Raises:
         ValueError: behaviour cloning without labels or demonstrations, or demonstrations without it.
@@ -293,8 +229,4 @@ def terms_from_config(
         terms.append(BehaviourCloning(cfg.bc_coef, cfg.bc_coef_end, label_key, demos))
     elif demos is not None:
         raise ValueError("demos are cloned with weight bc_coef; set bc_coef > 0 or bc_coef_end > 0")
-    if TemporalSmoothness.name in names:
-        terms.append(TemporalSmoothness(cfg.smooth_temporal_coef))
-    if SpatialSmoothness.name in names:
-        terms.append(SpatialSmoothness(cfg.smooth_spatial_coef, cfg.smooth_spatial_std))
     return tuple(terms)

@@ -27,7 +27,7 @@ PRESET_DIR: Traversable = importlib.resources.files("harv_jax.training") / "pres
 #: Tables of a preset besides ``[ppo]``; all but ``env`` are stored nested inside the env settings.
 NESTED_TABLES = ("reward", "randomization", "spin", "eval")
 #: Name of the preset used when none is given.
-DEFAULT_PRESET = "teacher"
+DEFAULT_PRESET = "robust"
 
 
 def _preset_files() -> dict[str, Traversable]:
