@@ -1,7 +1,8 @@
 """Wall time of the default training command: `harv-jax train --seed S` (the default preset: 5 seeds),
 compile, spin bank and per-period evaluation included, as a user runs it.
 
-    python benchmarks/bench_train_default.py --seed 4817 --out benchmarks/results/train_default_xeon-2core.json
+    python benchmarks/bench_train_default.py --seed 4817 \
+        --out benchmarks/results/train_default_xeon-2core.json
 
 Runs the command as a subprocess into a temporary folder, records its wall time, the load average before and
 after, the CPU model and each seed's last evaluation (recovered fraction, mean recovery time), and writes one
