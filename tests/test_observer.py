@@ -146,7 +146,8 @@ def test_observer_suffix_in_the_registry():
     for bad in bad_names:
         with pytest.raises(UsageError, match="controller"):
             parse_controllers(bad)
-    state = build_controller("hybrid+obs0.2", ControllerOptions()).init(harv())
+    teacher = ControllerOptions(policy="shipped:teacher")  # a policy without a path of its own
+    state = build_controller("hybrid+obs0.2", teacher).init(harv())
     assert state.u_prev_rad.shape == (3,) and state.x_est.shape == (10,)
     state = build_controller("smc+eso0.1", ControllerOptions()).init(harv())
     assert state.bias_per_s.shape == (8,)

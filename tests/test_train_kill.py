@@ -236,9 +236,9 @@ def test_train_help_shows_preset_defaults(monkeypatch, capsys):
     code, out, _ = cli_run(monkeypatch, capsys, "train", "--help")
     assert code == 0
     text = " ".join(out.replace("│", " ").split())  # the help's box borders out of wrapped lines
-    assert "Default from --preset: teacher 4,000,000, fast 8,000,000, paper-full 120,000,000" in text
-    assert "paper-partial 10,000,000, recovery 8,000,000, smoke 600,000" in text
-    assert "(teacher, fast, paper-full, paper-partial, recovery, smoke)" in text  # the default first
+    assert "Default from --preset: robust 4,000,000, fast 8,000,000, paper-full 120,000,000" in text
+    assert "paper-partial 10,000,000, recovery 8,000,000, smoke 600,000, teacher 4,000,000" in text
+    assert "(robust, fast, paper-full, paper-partial, recovery, smoke, teacher)" in text  # the default first
     assert "--periods" in text and "--checkpoint-every" in text and "--watchdog-s" in text
     assert "[@seed]" in text
 
