@@ -3,7 +3,7 @@
 Usage::
 
     git worktree add /tmp/before <commit>
-    python benchmarks/ab_step.py --trees /tmp/before,. --kinds smc,hybrid_gated [--repeats 11]
+    python benchmarks/ab_step.py --trees /tmp/before,. --kinds smc,hybrid_gated [--repeats 11] [--policy P]
 
 Each tree's ``benchmarks/bench_step.build`` compiles its own plant, controllers and step loops (batch 1000,
 50 steps per call, the Monte Carlo's reset states); the compiled loops of both trees are then timed
@@ -34,7 +34,7 @@ from benchmarks.common import best_us_per_step, load_average_1min, machine_name,
 GATED_KINDS = ("hybrid_gated", "hybrid_simplex", "hybrid_simplex_zero_policy", "rl")
 
 
-def build_tree(tree: Path, kinds: list[str], batch: int, n_steps: int) -> dict:
+def build_tree(tree: Path, kinds: list[str], batch: int, n_steps: int, policy: str | None = None) -> dict:
     """Import ``harv_jax`` and ``benchmarks`` from ``tree`` (dropping any loaded copy) and build its steps."""
     for name in [m for m in sys.modules if m.split(".")[0] in ("harv_jax", "benchmarks")]:
         del sys.modules[name]
@@ -46,7 +46,7 @@ def build_tree(tree: Path, kinds: list[str], batch: int, n_steps: int) -> dict:
         built = bench_step.build(
             batch,
             n_steps,
-            None,
+            policy,
             0,
             gated=any(k in GATED_KINDS for k in kinds),
             controllers=tuple(k for k in kinds if k in ("smc", "hybrid")),
@@ -64,6 +64,9 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--steps", type=int, default=50, help="steps per timed call")
     ap.add_argument("--repeats", type=int, default=11)
     ap.add_argument("--copies", type=int, default=1, help="builds per tree (median of their best times)")
+    ap.add_argument(
+        "--policy", default=None, help="the policy both trees fly (default: each tree's shipped default)"
+    )
     ap.add_argument("--machine", default=None)
     ap.add_argument("--note", default="")
     ap.add_argument("--out-dir", type=Path, default=ROOT / "benchmarks" / "results")
@@ -82,7 +85,7 @@ def main(argv: list[str] | None = None) -> dict:
         (t, c, k): b
         for c in range(args.copies)
         for t in trees
-        for k, b in build_tree(t, kinds, args.batch, args.steps).items()
+        for k, b in build_tree(t, kinds, args.batch, args.steps, args.policy).items()
     }
     per_copy = best_us_per_step(built, args.repeats, args.steps)
     us = {
@@ -112,6 +115,7 @@ def main(argv: list[str] | None = None) -> dict:
             "repeats": args.repeats,
             "copies": args.copies,
             "kinds": kinds,
+            "policy": args.policy,
         },
         "method": (
             "benchmarks.bench_step.build from each tree in one process (--copies builds each); interleaved "
