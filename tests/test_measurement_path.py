@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from cli_util import cli_run
+from cli_util import assert_train_preset_refused, cli_run
 
 from harv_jax.aircraft import harv
 from harv_jax.control.registry import ControllerOptions, build_controller
@@ -166,11 +166,7 @@ def test_the_path_of_a_preset_is_checked(tmp_path, monkeypatch, capsys):
         ('"lp900"', "[env] measurement_path 'lp900'"),
         ("2", "[env] measurement_path 2: allowed"),
     ):
-        preset = tmp_path / "p.toml"
-        preset.write_text(f"[ppo]\ntotal_steps = 4096\nnum_envs = 16\n[env]\nmeasurement_path = {value}\n")
-        code, _, err = cli_run(monkeypatch, capsys, "train", "--preset", preset, "--out", tmp_path / "run")
-        assert code == 2 and message in err and err.count("\n") == 1, err
-        assert not (tmp_path / "run").exists()
+        assert_train_preset_refused(tmp_path, monkeypatch, capsys, f"measurement_path = {value}", message)
     assert path_from_record({"kind": "eso", "bandwidth_hz": 0.075}, "x").bandwidth_hz == 0.075
 
 

@@ -6,7 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from cli_util import cli_run
+from cli_util import assert_train_preset_refused
 
 from harv_jax.errors import UsageError
 from harv_jax.ppo.config import PPOConfig
@@ -112,8 +112,4 @@ def test_the_critic_setting_is_checked(tmp_path, monkeypatch, capsys):
         ('critic = "privileged"', '[env] critic "privileged" sees the true state behind a measurement path'),
         ('measurement_path = "lp2"\ncritic = true', "[env] critic True; allowed: actor, privileged"),
     ):
-        preset = tmp_path / "p.toml"
-        preset.write_text(f"[ppo]\ntotal_steps = 4096\nnum_envs = 16\n[env]\n{env}\n")
-        code, _, err = cli_run(monkeypatch, capsys, "train", "--preset", preset, "--out", tmp_path / "run")
-        assert code == 2 and message in err and err.count("\n") == 1, err
-        assert not (tmp_path / "run").exists()
+        assert_train_preset_refused(tmp_path, monkeypatch, capsys, env, message)
