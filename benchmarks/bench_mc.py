@@ -8,7 +8,7 @@ Usage::
     python benchmarks/bench_mc.py --quick                # 64 runs x 5 s (+ 8 x 8 map): a sanity run
     python benchmarks/bench_mc.py --envelope --compare-chunk 250  # + chunks of 250 runs (the old default)
 
-What is timed: ``harv_jax.evaluation.monte_carlo.run_mc`` exactly as ``harv-jax mc`` calls it (common
+What is timed: ``harv_jax.evaluation.montecarlo.rollout.run_mc`` exactly as ``harv-jax mc`` calls it (common
 random initial states from the paper's reset bounds, nominal aircraft, alpha_d = 0.349 rad, dt 0.01 s,
 decimated bands every 10 steps, chunks of ``--chunk`` runs sharded over the local devices; by default the
 CLI's automatic chunk, ``guards.auto_chunk``). ``compile`` is
@@ -144,7 +144,7 @@ def bench_controller(
     import numpy as np
 
     from harv_jax.aircraft import harv
-    from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+    from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
     from harv_jax.task.criteria import OUTCOME_NAMES
 
     reference = jnp.array([TARGET_ALPHA_RAD, 0.0, 0.0])
@@ -198,7 +198,7 @@ def bench_envelope(name: str, ctrl, n: int, n_steps: int, chunk: int | None, see
     import jax.numpy as jnp
 
     from harv_jax.aircraft import harv
-    from harv_jax.evaluation.envelope_map import envelope_inputs, make_grid, run_envelope
+    from harv_jax.evaluation.envelope.grid import envelope_inputs, make_grid, run_envelope
 
     grid = make_grid("alpha0", "r0", n, n)
     inputs = envelope_inputs(jax.random.key(seed), grid, harv())
@@ -207,7 +207,7 @@ def bench_envelope(name: str, ctrl, n: int, n_steps: int, chunk: int | None, see
     )
     return {
         "controller": name,
-        "grid": f"alpha0 x r0, {n} x {n} (reset bounds; other states envelope_map.DEFAULT_FIXED_STATE)",
+        "grid": f"alpha0 x r0, {n} x {n} (reset bounds; other states envelope.grid.DEFAULT_FIXED_STATE)",
         "runs": grid.n_runs,
         "steps_per_run": n_steps,
         "chunk": wall["chunk_runs"],

@@ -75,7 +75,7 @@ def build(
     from harv_jax.dynamics.actuators import actuator_step
     from harv_jax.dynamics.integrate import rk4_body_step
     from harv_jax.dynamics.state import from_wind, is_finite, to_wind
-    from harv_jax.evaluation.monte_carlo import sample_mc_inputs
+    from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs
 
     reference = jnp.array([0.349, 0.0, 0.0])
     inputs = sample_mc_inputs(jax.random.key(seed), batch, harv())
@@ -123,7 +123,7 @@ def build(
         kinds["rl"] = ("rl", "continuous")
     ctrls = {n: build_controller(k, ControllerOptions(policy=policy, zeta=z)) for n, (k, z) in kinds.items()}
     if gated:  # the simplex hybrid with a policy that costs nothing: what the hybrid's own logic costs
-        from harv_jax.control.hybrid import HybridConfig, make_hybrid
+        from harv_jax.control.hybrid.law import HybridConfig, make_hybrid
 
         def zero_policy(obs):
             return jnp.zeros(obs.shape[:-1] + (3,), obs.dtype)

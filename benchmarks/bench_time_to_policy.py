@@ -35,7 +35,7 @@ def mc(controller, runs: int, seed: int) -> dict:
     import jax.numpy as jnp
 
     from harv_jax.aircraft import harv
-    from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+    from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
     from harv_jax.evaluation.summary import summarize_controller
     from harv_jax.task.spec import ALPHA_TARGET_RAD as DEFAULT_ALPHA_TARGET_RAD
 

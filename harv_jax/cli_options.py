@@ -16,7 +16,7 @@ from typing import Any
 
 import typer
 
-from harv_jax.control.hybrid_settings import DEFAULT_ZETA
+from harv_jax.control.hybrid.settings import DEFAULT_ZETA
 from harv_jax.control.registry import ControllerOptions, check_options_apply
 from harv_jax.errors import UsageError
 from harv_jax.task.disturbance_table import BY_NAME, LEVEL_NAMES
@@ -201,9 +201,9 @@ def disturbance_options(command: Callable[..., Any]) -> Callable[..., Any]:
     """Give a typer command ``--disturbances`` and the level options (one definition for every command).
 
     The command declares a keyword ``disturbance_spec`` instead and receives the parsed ``DisturbanceSpec``
-    (``evaluation.disturbance_spec``); a bad value fails with the one-line UsageError before the command runs.
-    Parameters ``randomize`` and ``controller_knows_aircraft`` of the command, if it has them, take part in
-    the parsing (``--randomize`` turns ``model`` on).
+    (``evaluation.montecarlo.disturbances``); a bad value fails with the one-line UsageError before the
+    command runs. Parameters ``randomize`` and ``controller_knows_aircraft`` of the command, if it has them,
+    take part in the parsing (``--randomize`` turns ``model`` on).
     """
     keyword = inspect.Parameter.KEYWORD_ONLY
     added = [inspect.Parameter("disturbances", keyword, default=disturbances_option(), annotation=str)]
@@ -289,7 +289,7 @@ def disturbance_spec_from_cli(
 ):
     """The ``DisturbanceSpec`` of the disturbance options (UsageError naming a bad one); ``levels`` by
     option parameter (``noise_scale``, ``delay_ms``, ...: ``harv_jax.task.disturbance_table``)."""
-    from harv_jax.evaluation.disturbance_spec import parse_disturbances
+    from harv_jax.evaluation.montecarlo.disturbances import parse_disturbances
 
     unknown = sorted(set(levels) - {BY_NAME[n].parameter for n in LEVEL_NAMES})
     if unknown:

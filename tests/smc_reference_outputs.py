@@ -24,7 +24,7 @@ import numpy as np
 from harv_jax.aircraft import harv
 from harv_jax.control.lie import smc_lie_terms
 from harv_jax.control.smc import SMCConfig, default_gains, guarded_solve, make_smc, smc_command
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
 from harv_jax.evaluation.summary import summarize_controller
 
 PATH = Path(__file__).resolve().parent / "data" / "smc_reference.npz"

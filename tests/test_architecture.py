@@ -61,7 +61,7 @@ def test_the_scan_sees_the_package() -> None:
     """Guard against a vacuous pass: the graph holds known edges."""
     assert len(GRAPH) > 40
     assert any(_under(d, "harv_jax.dynamics") for d in GRAPH["harv_jax.env.recovery"])
-    assert any(_under(d, "harv_jax.task") for d in GRAPH["harv_jax.control.hybrid"])
+    assert any(_under(d, "harv_jax.task") for d in GRAPH["harv_jax.control.hybrid.law"])
 
 
 @pytest.mark.parametrize(

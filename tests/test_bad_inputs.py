@@ -1056,8 +1056,8 @@ def test_version(monkeypatch, capsys):
 
 def test_hybrid_config_default_is_the_cli_default():
     from harv_jax.cli_options import controller_options, zeta_option
-    from harv_jax.control.hybrid import HybridConfig
-    from harv_jax.control.hybrid_settings import DEFAULT_ZETA
+    from harv_jax.control.hybrid.law import HybridConfig
+    from harv_jax.control.hybrid.settings import DEFAULT_ZETA
     from harv_jax.control.registry import ControllerOptions
 
     assert HybridConfig().schedule == DEFAULT_ZETA == ControllerOptions().zeta

@@ -19,8 +19,8 @@ from harv_jax.dynamics.disturbed_step import air_relative
 from harv_jax.dynamics.state import from_wind, to_wind
 from harv_jax.errors import UsageError
 from harv_jax.evaluation.closed_loop import closed_loop
-from harv_jax.evaluation.disturbance_spec import DisturbanceSpec, parse_disturbances
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, with_full_structure
+from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec, parse_disturbances
+from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs, with_full_structure
 from harv_jax.evaluation.robustness import margin
 from harv_jax.task.disturbance_table import DISTURBANCES, markdown_table
 
@@ -273,7 +273,7 @@ def test_a_users_controller_flies_in_the_monte_carlo(tmp_path):
     is the first's, which the test run's compilation cache (conftest) reads back instead of compiling."""
     import csv
 
-    from harv_jax.evaluation.mc_study import monte_carlo, write_runs_csv
+    from harv_jax.evaluation.montecarlo.study import monte_carlo, write_runs_csv
 
     spec = DisturbanceSpec(noise_scale=1.0, delay_ms=30.0)
     study = monte_carlo({"hold": PROBE, "smc": PROBE}, None, 3, 0.349, 1.0, 1, False, disturbances=spec)

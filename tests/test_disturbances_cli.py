@@ -69,7 +69,7 @@ def test_turbulence_on_mc_and_fly_is_recorded_and_its_wind_written(monkeypatch, 
     the air mass's body-axis velocity next to the states."""
     import csv
 
-    from harv_jax.evaluation.disturbance_spec import parse_turbulence
+    from harv_jax.evaluation.montecarlo.disturbances import parse_turbulence
 
     assert parse_turbulence("0") == parse_turbulence(None) == "none" and parse_turbulence("6.50") == "6.5"
     base = ["--controller", damper, "--runs", "3", "--duration", "10.5", "--seed", "5"]

@@ -27,7 +27,7 @@ from harv_jax.env.config import EnvConfig
 from harv_jax.env.recovery import make_env
 from harv_jax.env.termination import termination_flags
 from harv_jax.evaluation.closed_loop import closed_loop
-from harv_jax.evaluation.mc_inputs import sample_mc_inputs
+from harv_jax.evaluation.montecarlo.inputs import sample_mc_inputs
 from harv_jax.task.criteria import default_envelope, within_envelope
 from harv_jax.task.spaces import command_to_action
 from harv_jax.task.spec import (

@@ -24,8 +24,8 @@ from harv_jax.env.config import EnvConfig
 from harv_jax.env.randomize import EpisodeParams
 from harv_jax.env.recovery import make_env
 from harv_jax.evaluation.closed_loop import closed_loop
-from harv_jax.evaluation.disturbance_spec import parse_disturbances
-from harv_jax.evaluation.mc_inputs import sample_mc_inputs
+from harv_jax.evaluation.montecarlo.disturbances import parse_disturbances
+from harv_jax.evaluation.montecarlo.inputs import sample_mc_inputs
 from harv_jax.task.spaces import command_to_action
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S, H0_FT, RATE_MAX_RADPS, V_MAX_FPS
 

@@ -14,14 +14,14 @@ from cli_util import cli_run
 from harv_jax.aircraft import harv
 from harv_jax.control.smc import make_smc
 from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.envelope_map import (
+from harv_jax.evaluation.envelope.grid import (
     DEFAULT_FIXED_STATE,
     envelope_inputs,
     grid_states,
     make_grid,
     run_envelope,
 )
-from harv_jax.evaluation.monte_carlo import TERMINAL_WINDOW_S
+from harv_jax.evaluation.montecarlo.rollout import TERMINAL_WINDOW_S
 from harv_jax.evaluation.summary import summarize_envelope
 from harv_jax.task.criteria import OUTCOME_NAMES, tracking_errors
 

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from cli_util import cli_run
 
-from harv_jax.evaluation.acceptance import CRITERIA, judge, passes
-from harv_jax.evaluation.evaluation_report import build_document, seed_metrics
+from harv_jax.evaluation.seeds.acceptance import CRITERIA, judge, passes
+from harv_jax.evaluation.seeds.report import build_document, seed_metrics
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -139,7 +139,7 @@ def test_evaluate_flies_the_monte_carlos_runs_and_resumes(fake_run, tmp_path, mo
     """The policy's rollout with traced parameters, behind the measurement path the policies carry, gives
     the Monte Carlo's per-run results (``harv-jax mc`` on the same seed), the seeds share one compile, and
     ``--resume`` reuses every stored cell."""
-    from harv_jax.evaluation.seed_evaluation import cell_path
+    from harv_jax.evaluation.seeds.conditions import cell_path
 
     for f in (fake_run / "policy").iterdir():  # both seeds trained behind the 0.3 Hz observer
         with np.load(f, allow_pickle=False) as z:

@@ -12,9 +12,9 @@ from compile_options import FAST_COMPILE
 from policy_fixtures import FIXTURE_POLICIES, write_fixture_policies
 
 from harv_jax.aircraft import harv
-from harv_jax.control.gate import certificate_bounds, gate, inv3, signed_residual
-from harv_jax.control.hybrid import HybridConfig, default_hybrid_gains, make_hybrid
-from harv_jax.control.safety import limit_box
+from harv_jax.control.hybrid.gate import certificate_bounds, gate, inv3, signed_residual
+from harv_jax.control.hybrid.law import HybridConfig, default_hybrid_gains, make_hybrid
+from harv_jax.control.hybrid.safety import limit_box
 from harv_jax.control.smc import SMCConfig, smc_command
 from harv_jax.policy import load
 from harv_jax.task.scenarios import sample_table_states
@@ -166,7 +166,7 @@ def test_fixture_policies_load_and_behave_as_named(tmp_path):
 
 
 def test_gate_summary_pools_steps_over_runs():
-    from harv_jax.evaluation.monte_carlo import gate_summary
+    from harv_jax.evaluation.montecarlo.rollout import gate_summary
 
     rng = np.random.default_rng(0)
     n = 5

@@ -13,17 +13,17 @@ from compile_options import FAST_COMPILE
 
 from harv_jax.aircraft import harv
 from harv_jax.control import make_smc
-from harv_jax.control.hybrid import HybridConfig, default_hybrid_gains, make_hybrid, zero_policy_action
-from harv_jax.control.rl import make_rl_controller
-from harv_jax.control.safety import cap_authority, filter_command, limit_box
-from harv_jax.control.scheduling import continuous_zeta, hysteresis_step, zeta_init
-from harv_jax.control.supervisor import (
+from harv_jax.control.hybrid.law import HybridConfig, default_hybrid_gains, make_hybrid, zero_policy_action
+from harv_jax.control.hybrid.safety import cap_authority, filter_command, limit_box
+from harv_jax.control.hybrid.supervisor import (
     FallbackReason,
     default_supervisor_gains,
     record_intervention,
     supervise,
     supervisor_init,
 )
+from harv_jax.control.hybrid.zeta import continuous_zeta, hysteresis_step, zeta_init
+from harv_jax.control.rl import make_rl_controller
 from harv_jax.evaluation import closed_loop
 from harv_jax.evaluation.certificate import empirical_certificate, unsaturated_steps
 
@@ -307,7 +307,7 @@ def test_hand_over_counter_on_a_hand_made_zeta_sequence():
     after its start."""
     import types
 
-    from harv_jax.control.hybrid import zeta_handed_over
+    from harv_jax.control.hybrid.law import zeta_handed_over
     from harv_jax.evaluation.summary import summarize_controller
 
     def handovers(seq: list[float]) -> list[bool]:

@@ -13,15 +13,15 @@ from compile_options import FAST_COMPILE
 
 from harv_jax.aircraft import harv
 from harv_jax.control import make_smc
-from harv_jax.control.hybrid import HybridConfig, default_hybrid_gains, make_hybrid
-from harv_jax.control.rl import make_rl_controller
-from harv_jax.control.scheduling import (
+from harv_jax.control.hybrid.law import HybridConfig, default_hybrid_gains, make_hybrid
+from harv_jax.control.hybrid.zeta import (
     SIMPLEX_FALLBACK_SMC,
     SIMPLEX_REASONS,
     simplex_fallback_gains,
     simplex_init,
     simplex_step,
 )
+from harv_jax.control.rl import make_rl_controller
 from harv_jax.control.smc import default_gains
 from harv_jax.evaluation import closed_loop
 from harv_jax.task.scenarios import sample_table_states
@@ -235,7 +235,7 @@ def test_vmaps_over_aircraft_equal_to_single_runs_with_one_trace():
 
 
 def test_simplex_summary_counts_runs_by_reason():
-    from harv_jax.evaluation.monte_carlo import simplex_summary
+    from harv_jax.evaluation.montecarlo.rollout import simplex_summary
 
     info = {  # time means per run of the hand-over flags: run 0 box, run 2 deadline, runs 1 and 3 none
         "handover_box": np.array([0.9, 0.0, 0.0, 0.0]),

@@ -14,7 +14,7 @@ from harv_jax.aircraft import harv
 from harv_jax.cli import app
 from harv_jax.control.smc import make_smc
 from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.monte_carlo import (
+from harv_jax.evaluation.montecarlo.rollout import (
     TERMINAL_WINDOW_S,
     run_mc,
     sample_mc_inputs,

@@ -44,7 +44,7 @@ def test_surrogate_gradient_matches_central_differences_float64(x64) -> None:
 
 
 def test_study_is_never_slower_than_the_best_controller_and_rescored_honestly() -> None:
-    from harv_jax.evaluation.paired import times_nr_at_run_s
+    from harv_jax.evaluation.montecarlo.paired import times_nr_at_run_s
     from harv_jax.optimal.search import SearchConfig
     from harv_jax.optimal.study import BASELINES, OPTIMAL, mc_scenario, optimal_study
 

@@ -1,5 +1,5 @@
-"""Recovery times compared run by run (``harv_jax.evaluation.paired``) against hand-worked numbers, and
-where they show: the Monte Carlo summary block, the report's table and compare's rows."""
+"""Recovery times compared run by run (``harv_jax.evaluation.montecarlo.paired``) against hand-worked
+numbers, and where they show: the Monte Carlo summary block, the report's table and compare's rows."""
 
 from __future__ import annotations
 
@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 from harv_jax.evaluation.comparison import add_vs_smc
-from harv_jax.evaluation.mc_study import paired_line
-from harv_jax.evaluation.paired import (
+from harv_jax.evaluation.montecarlo.paired import (
     mean_nr_at_run_s,
     paired_vs_reference,
     paired_vs_smc,
     times_nr_at_run_s,
 )
+from harv_jax.evaluation.montecarlo.study import paired_line
 from harv_jax.report.document import Doc, to_markdown
 from harv_jax.report.sections import mc_section
 

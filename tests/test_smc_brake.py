@@ -29,7 +29,7 @@ from harv_jax.control.smc_brake import (
     make_smc_brake,
 )
 from harv_jax.errors import UsageError
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
 from harv_jax.task.criteria import Outcome
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 

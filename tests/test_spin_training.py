@@ -61,7 +61,7 @@ def test_spin_resets_start_from_the_bank(bank):
 def test_policy_eval_equals_monte_carlo():
     """The training-time evaluation scores runs exactly as the Monte Carlo does (same runs, same policy)."""
     from harv_jax.control.rl import make_rl_controller
-    from harv_jax.evaluation.monte_carlo import run_mc
+    from harv_jax.evaluation.montecarlo.rollout import run_mc
     from harv_jax.evaluation.policy_eval import make_eval_batch, make_policy_eval, summarize_eval
 
     def act(params, normalizer, obs):  # a fixed linear "policy": pitch and roll damping
@@ -72,7 +72,7 @@ def test_policy_eval_equals_monte_carlo():
     batch = make_eval_batch(6, 0, harv())
     out = jax.jit(make_policy_eval(act, batch, duration_s=12.0))(w, bias)
     ctrl = make_rl_controller(lambda obs: act(w, bias, obs))
-    from harv_jax.evaluation.monte_carlo import MCInputs
+    from harv_jax.evaluation.montecarlo.rollout import MCInputs
 
     inputs = MCInputs(x0_wind=batch.x0_wind, params=batch.params, keys=jax.random.split(jax.random.key(0), 6))
     mc, _ = run_mc(ctrl, inputs, jnp.asarray([0.349, 0.0, 0.0]), 1200)

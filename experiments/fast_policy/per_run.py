@@ -19,7 +19,7 @@ from evaluate import mc  # noqa: E402
 from harv_jax.aircraft import harv  # noqa: E402
 from harv_jax.control.rl import make_rl_controller  # noqa: E402
 from harv_jax.control.smc import make_smc  # noqa: E402
-from harv_jax.evaluation.monte_carlo import sample_mc_inputs  # noqa: E402
+from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs  # noqa: E402
 from harv_jax.policy import resolve_policy  # noqa: E402
 
 BINS_FPS = (100.0, 500.0, 900.0, 1200.0, 1500.0)

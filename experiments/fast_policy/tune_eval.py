@@ -22,7 +22,7 @@ from evaluate import mc, paired  # noqa: E402
 from harv_jax.aircraft import harv  # noqa: E402
 from harv_jax.control.rl import make_rl_controller  # noqa: E402
 from harv_jax.control.smc import make_smc  # noqa: E402
-from harv_jax.evaluation.monte_carlo import sample_mc_inputs  # noqa: E402
+from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs  # noqa: E402
 from harv_jax.policy import resolve_policy  # noqa: E402
 
 

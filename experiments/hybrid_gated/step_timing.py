@@ -19,10 +19,10 @@ import jax
 import jax.numpy as jnp
 
 from harv_jax.aircraft import harv
-from harv_jax.control.hybrid import HybridConfig, make_hybrid
+from harv_jax.control.hybrid.law import HybridConfig, make_hybrid
 from harv_jax.control.smc import make_smc
 from harv_jax.evaluation.closed_loop import closed_loop
-from harv_jax.evaluation.monte_carlo import sample_mc_inputs
+from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs
 from harv_jax.policy import resolve_policy
 
 

@@ -41,7 +41,7 @@ import numpy as np
 
 # ---- library names (one block: the package is being refactored; fix paths here) ----
 from harv_jax.aircraft import harv
-from harv_jax.control.hybrid import (
+from harv_jax.control.hybrid.law import (
     PAPER_E_OFF_RAD,
     PAPER_E_ON_RAD,
     ZETA_SCHEDULES,
@@ -52,7 +52,7 @@ from harv_jax.control.hybrid import (
 from harv_jax.control.rl import make_rl_controller
 from harv_jax.control.smc import SMCConfig, SMCGains, default_gains, make_smc
 from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.monte_carlo import MCInputs, sample_mc_inputs
+from harv_jax.evaluation.montecarlo.rollout import MCInputs, sample_mc_inputs
 from harv_jax.optimal.outputs import cpu_model
 from harv_jax.policy import resolve_policy
 from harv_jax.task.criteria import OUTCOME_NAMES

@@ -20,10 +20,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from harv_jax.aircraft.params import harv
-from harv_jax.control.hybrid import DEFAULT_SIMPLEX_BOX_HIGH, DEFAULT_SIMPLEX_BOX_LOW
-from harv_jax.control.scheduling import simplex_fallback_gains
+from harv_jax.control.hybrid.law import DEFAULT_SIMPLEX_BOX_HIGH, DEFAULT_SIMPLEX_BOX_LOW
+from harv_jax.control.hybrid.zeta import simplex_fallback_gains
 from harv_jax.control.smc import SMCConfig, default_gains, make_smc
-from harv_jax.evaluation.monte_carlo import MCInputs, run_mc, sample_mc_inputs
+from harv_jax.evaluation.montecarlo.rollout import MCInputs, run_mc, sample_mc_inputs
 from harv_jax.task.scenarios import ResetBounds, sample_table_states
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 

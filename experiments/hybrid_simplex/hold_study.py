@@ -23,12 +23,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from harv_jax.aircraft.params import harv
-from harv_jax.control.hybrid import HybridConfig, default_hybrid_gains, make_hybrid
-from harv_jax.control.hybrid_settings import HybridGains
+from harv_jax.control.hybrid.law import HybridConfig, default_hybrid_gains, make_hybrid
+from harv_jax.control.hybrid.settings import HybridGains
 from harv_jax.control.registry import ControllerOptions, build_controller
 from harv_jax.dynamics.state import vt_fps
 from harv_jax.evaluation.closed_loop import closed_loop
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, simplex_summary
+from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs, simplex_summary
 from harv_jax.policy import resolve_policy
 from harv_jax.task.criteria import omega_norm_radps, tracking_errors
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 
 from harv_jax.aircraft import harv
 from harv_jax.control import make_smc
-from harv_jax.control.hybrid import (
+from harv_jax.control.hybrid.law import (
     DEFAULT_E_OFF_RAD,
     DEFAULT_E_ON_RAD,
     PAPER_E_OFF_RAD,
@@ -29,7 +29,7 @@ from harv_jax.control.hybrid import (
     make_hybrid,
 )
 from harv_jax.control.rl import make_rl_controller
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
 from harv_jax.evaluation.summary import summarize_controller
 from harv_jax.policy import resolve_policy
 

@@ -31,7 +31,7 @@ from harv_jax.aircraft.randomize import default_aircraft_randomization
 from harv_jax.control.base import Controller
 from harv_jax.control.registry import build_controller
 from harv_jax.evaluation.closed_loop import closed_loop
-from harv_jax.evaluation.monte_carlo import sample_mc_inputs
+from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs
 from harv_jax.policy import export_npz, resolve_policy
 from harv_jax.ppo import normalize as obs_norm
 from harv_jax.task.spaces import command_to_action, observation

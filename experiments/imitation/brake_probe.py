@@ -12,7 +12,7 @@ import numpy as np
 from harv_jax.aircraft.params import harv
 from harv_jax.control.base import Controller
 from harv_jax.control.registry import build_controller
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 N = int(sys.argv[1]) if len(sys.argv) > 1 else 256

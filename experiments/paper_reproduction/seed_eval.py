@@ -22,10 +22,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from harv_jax.aircraft import harv
-from harv_jax.control.hybrid import HybridConfig, make_hybrid
+from harv_jax.control.hybrid.law import HybridConfig, make_hybrid
 from harv_jax.control.rl import make_rl_controller
 from harv_jax.control.smc import make_smc
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
 from harv_jax.evaluation.summary import summarize_controller
 from harv_jax.policy import load
 

@@ -95,7 +95,7 @@ def mc_eval(policy: str, runs: int, seed: int) -> dict:
 
     from harv_jax.aircraft import harv
     from harv_jax.control.rl import make_rl_controller
-    from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+    from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
     from harv_jax.evaluation.policy_eval import make_eval_batch
     from harv_jax.evaluation.summary import summarize_controller
     from harv_jax.policy import resolve_policy

@@ -3,7 +3,7 @@
     python experiments/robustness/env_vs_mc.py --runs 1000 --seed 2027
 
 Draws the initial states of ``harv-jax mc --runs N --seed S`` (nominal aircraft, no disturbance:
-``evaluation.mc_inputs.sample_mc_inputs``) and flies the SMC from each of them twice, for the Monte
+``evaluation.montecarlo.inputs.sample_mc_inputs``) and flies the SMC from each of them twice, for the Monte
 Carlo's 60 s:
 
 (a) through the env: ``make_env(EnvConfig(domain_randomization=False, episode_steps=6000))``,
@@ -53,9 +53,9 @@ from harv_jax.env.randomize import EpisodeParams
 from harv_jax.env.recovery import make_env
 from harv_jax.env.termination import TerminationFlags, termination_flags
 from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.disturbance_spec import parse_disturbances
-from harv_jax.evaluation.mc_inputs import sample_mc_inputs, with_full_structure
 from harv_jax.evaluation.metrics import compute_metrics
+from harv_jax.evaluation.montecarlo.disturbances import parse_disturbances
+from harv_jax.evaluation.montecarlo.inputs import sample_mc_inputs, with_full_structure
 from harv_jax.optimal.outputs import cpu_model
 from harv_jax.task.criteria import OUTCOME_NAMES, within_envelope
 from harv_jax.task.spaces import command_to_action

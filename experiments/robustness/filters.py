@@ -14,8 +14,8 @@ import numpy as np
 from harv_jax.aircraft import harv
 from harv_jax.control.filters import with_measurement_filter
 from harv_jax.control.registry import ControllerOptions, build_controller
-from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec
+from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 

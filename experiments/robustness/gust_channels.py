@@ -27,8 +27,8 @@ from harv_jax.control.base import Controller
 from harv_jax.control.registry import ControllerOptions, build_controller
 from harv_jax.control.smc import default_gains, make_smc
 from harv_jax.evaluation.closed_loop import closed_loop
-from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
-from harv_jax.evaluation.mc_inputs import sample_mc_inputs
+from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec
+from harv_jax.evaluation.montecarlo.inputs import sample_mc_inputs
 from harv_jax.optimal.outputs import cpu_model
 from harv_jax.task.criteria import RECOVERED_TOL, omega_norm_radps, tracking_errors
 from harv_jax.task.spec import ALPHA_TARGET_RAD, RECOVERY_HOLD_S

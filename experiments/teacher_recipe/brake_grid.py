@@ -25,8 +25,8 @@ import numpy as np
 from harv_jax.aircraft import harv
 from harv_jax.control.smc import make_smc
 from harv_jax.control.smc_brake import brake_schedule, make_smc_brake
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
-from harv_jax.evaluation.paired import mean_nr_at_run_s, paired_vs_reference
+from harv_jax.evaluation.montecarlo.paired import mean_nr_at_run_s, paired_vs_reference
+from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 REF = jnp.asarray([ALPHA_TARGET_RAD, 0.0, 0.0])

@@ -22,8 +22,8 @@ import numpy as np
 from harv_jax.aircraft import harv
 from harv_jax.control.base import Controller
 from harv_jax.control.registry import ControllerOptions, build_controller
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
-from harv_jax.evaluation.paired import paired_vs_reference, times_nr_at_run_s
+from harv_jax.evaluation.montecarlo.paired import paired_vs_reference, times_nr_at_run_s
+from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 REF = jnp.asarray([ALPHA_TARGET_RAD, 0.0, 0.0])

@@ -3,7 +3,7 @@
     python experiments/teacher_recipe/eval_noise.py RUNS MC_SEED POLICY [POLICY ...]
 
 Conditions: clean, noise 1x (the env's per-channel maxima), noise 1x + 20 ms delay, noise 3x
-(``harv_jax.evaluation.disturbance_spec``); the same runs for every policy.
+(``harv_jax.evaluation.montecarlo.disturbances``); the same runs for every policy.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ import numpy as np
 
 from harv_jax.aircraft import harv
 from harv_jax.control.registry import ControllerOptions, build_controller
-from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
+from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec
+from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 CONDITIONS = {

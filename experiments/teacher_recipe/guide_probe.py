@@ -27,7 +27,7 @@ from harv_jax.cli import main as cli_main
 from harv_jax.control.registry import ControllerOptions, build_controller
 from harv_jax.env import env_settings
 from harv_jax.evaluation.closed_loop import closed_loop
-from harv_jax.evaluation.monte_carlo import sample_mc_inputs
+from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs
 from harv_jax.task.criteria import default_criterion, recovered_mask
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 from harv_jax.task.spin_bank import SpinBank

@@ -33,8 +33,8 @@ from harv_jax.aircraft import harv
 from harv_jax.control.base import Controller
 from harv_jax.control.registry import ControllerOptions, build_controller
 from harv_jax.env.recovery import with_auto_reset
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
-from harv_jax.evaluation.paired import paired_vs_reference
+from harv_jax.evaluation.montecarlo.paired import paired_vs_reference
+from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
 from harv_jax.evaluation.seed_stats import iqm_ci
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 from harv_jax.training import environment

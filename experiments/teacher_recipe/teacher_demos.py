@@ -21,7 +21,7 @@ import numpy as np
 from harv_jax.aircraft import harv
 from harv_jax.control.registry import build_controller
 from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.monte_carlo import sample_mc_inputs
+from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs
 from harv_jax.optimal.demos import check_demos_path, make_demos, save_demos
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 

@@ -26,8 +26,8 @@ from harv_jax.aircraft import harv
 from harv_jax.control.base import Controller
 from harv_jax.control.registry import ControllerOptions, build_controller
 from harv_jax.evaluation.closed_loop import closed_loop
-from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
-from harv_jax.evaluation.paired import times_nr_at_run_s
+from harv_jax.evaluation.montecarlo.paired import times_nr_at_run_s
+from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 REF = jnp.asarray([ALPHA_TARGET_RAD, 0.0, 0.0])

@@ -26,7 +26,7 @@ from harv_jax.aircraft import harv
 from harv_jax.control import smc_brake as sb
 from harv_jax.control.registry import ControllerOptions, build_controller
 from harv_jax.evaluation.closed_loop import closed_loop
-from harv_jax.evaluation.monte_carlo import sample_mc_inputs
+from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 REF = jnp.asarray([ALPHA_TARGET_RAD, 0.0, 0.0])

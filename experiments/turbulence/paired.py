@@ -21,10 +21,10 @@ import numpy as np
 
 from harv_jax.aircraft import harv
 from harv_jax.control.registry import ControllerOptions, build_controller
-from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
-from harv_jax.evaluation.mc_inputs import sample_mc_inputs
-from harv_jax.evaluation.monte_carlo import run_mc
-from harv_jax.evaluation.paired import mean_nr_at_run_s
+from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec
+from harv_jax.evaluation.montecarlo.inputs import sample_mc_inputs
+from harv_jax.evaluation.montecarlo.paired import mean_nr_at_run_s
+from harv_jax.evaluation.montecarlo.rollout import run_mc
 from harv_jax.optimal.outputs import cpu_model
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 

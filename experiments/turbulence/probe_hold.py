@@ -23,8 +23,8 @@ import numpy as np
 from harv_jax.aircraft import harv
 from harv_jax.control.registry import build_controller
 from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
-from harv_jax.evaluation.mc_inputs import sample_mc_inputs
+from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec
+from harv_jax.evaluation.montecarlo.inputs import sample_mc_inputs
 from harv_jax.task.criteria import tracking_errors
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 from harv_jax.task.turbulent_criterion import lowpass

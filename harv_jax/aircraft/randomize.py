@@ -1,9 +1,9 @@
 """Aircraft randomization: mass, inertia and aero-table draws around a nominal aircraft (vmappable).
 
 Used by the env (per-episode domain randomization, ``env.randomize``), the Monte Carlo
-(``evaluation.monte_carlo``) and the spin bank (``task.spin_bank``). ``AircraftRandomization`` holds the
-traced switches and ranges; the env's ``RandomizationParams`` carries the same fields (plus its gust, noise
-and delay items), so either can be passed where ``rand`` is asked for.
+(``evaluation.montecarlo.rollout``) and the spin bank (``task.spin_bank``). ``AircraftRandomization`` holds
+the traced switches and ranges; the env's ``RandomizationParams`` carries the same fields (plus its gust,
+noise and delay items), so either can be passed where ``rand`` is asked for.
 
 | quantity                    | draw                                                      |
 |-----------------------------|-----------------------------------------------------------|

@@ -1,12 +1,12 @@
 """`harv-jax envelope`: recovery envelope map of one or more controllers over a 2-D initial-state grid.
 
-The command parses the grid flags; the work is ``harv_jax.evaluation.envelope_study``.
+The command parses the grid flags; the work is ``harv_jax.evaluation.envelope.study``.
 
 Outputs in DIR: ``envelope_recovery.png`` (outcome maps side by side), ``envelope_time.png`` (recovery
 time maps), ``envelope.json`` (grid axes, fixed states, per-controller recovery rate, outcome
 counts, recovery-time statistics, wall times), ``envelope_grid.csv`` (one row per controller and grid
 point) and ``envelope_grid.npz`` (the maps as arrays: ``x_values``, ``y_values``, ``x0_wind`` and
-``<controller>/<field>`` [n_y, n_x]). See ``harv_jax.evaluation.envelope_map`` for the grid layout and
+``<controller>/<field>`` [n_y, n_x]). See ``harv_jax.evaluation.envelope.grid`` for the grid layout and
 the default fixed states.
 """
 
@@ -50,7 +50,7 @@ def parse_grid(text: str) -> tuple[tuple[str, tuple[float, float] | None], ...]:
 
     Ranges are in state units (ft/s, rad, rad/s, ft). UsageError on a malformed text or unknown axis.
     """
-    from harv_jax.evaluation.envelope_map import GRID_AXES
+    from harv_jax.evaluation.envelope.grid import GRID_AXES
 
     parts = text.split(":")
     if len(parts) != 2:
@@ -98,7 +98,7 @@ def parse_fixed(text: str) -> dict[str, float]:
 
 def build_grid(grid: str, n: int, fixed: str):
     """EnvelopeGrid from the CLI flags; UsageError (one line) for any bad value."""
-    from harv_jax.evaluation.envelope_map import GRID_AXES, make_grid
+    from harv_jax.evaluation.envelope.grid import GRID_AXES, make_grid
 
     if not 2 <= n <= MAX_POINTS_PER_AXIS:
         raise UsageError(f"--n {n} must be in [2, {MAX_POINTS_PER_AXIS}] (points per grid axis)")
@@ -156,7 +156,7 @@ def register(app: typer.Typer) -> None:
             warn_loop_mismatch,
         )
         from harv_jax.control.registry import build_controller, parse_controllers
-        from harv_jax.evaluation.envelope_study import envelope_study, write_envelope
+        from harv_jax.evaluation.envelope.study import envelope_study, write_envelope
         from harv_jax.guards import check_closed_loop_batch, check_seed
         from harv_jax.outdir import prepare_out_dir, read_paths
 

@@ -1,7 +1,7 @@
 """`harv-jax evaluate RUN_DIR`: every seed of a training run judged on the acceptance criteria.
 
-The work is ``harv_jax.evaluation.seed_evaluation`` (the cells) and ``harv_jax.evaluation.evaluation_report``
-(numbers, criteria, outputs); the criteria are ``harv_jax.evaluation.acceptance``.
+The work is ``harv_jax.evaluation.seeds.conditions`` (the cells) and ``harv_jax.evaluation.seeds.report``
+(numbers, criteria, outputs); the criteria are ``harv_jax.evaluation.seeds.acceptance``.
 """
 
 from __future__ import annotations
@@ -68,7 +68,7 @@ def run_aircraft(run_dir: Path) -> str:
 
 def parse_conditions(text: str) -> tuple[str, ...]:
     """``--conditions``: ``all`` or a comma list of condition names; UsageError otherwise."""
-    from harv_jax.evaluation.seed_evaluation import CONDITIONS
+    from harv_jax.evaluation.seeds.conditions import CONDITIONS
 
     parts = [p.strip() for p in str(text).split(",") if p.strip()]
     if parts == ["all"]:
@@ -109,7 +109,7 @@ def evaluate(
     files = policy_files(run_dir)
     if resume and force:
         raise UsageError("--resume keeps what --out holds and --force replaces it; give one of them")
-    from harv_jax.evaluation.seed_evaluation import EvalSettings, file_sha256
+    from harv_jax.evaluation.seeds.conditions import EvalSettings, file_sha256
 
     settings = EvalSettings(runs=runs, mc_seed=seed, duration_s=float(duration), conditions=conds)
     record = {
@@ -119,7 +119,7 @@ def evaluate(
         "policies": [{"seed": i, "policy": str(p), "sha256": file_sha256(p)} for i, p in enumerate(files)],
     }
     out_dir = _open_out(out, resume, force, record, [run_dir])
-    from harv_jax.evaluation.evaluation_flow import run_evaluation
+    from harv_jax.evaluation.seeds.flow import run_evaluation
 
     run_evaluation(out_dir, settings, record, files, command_line(), typer.echo)
 

@@ -71,7 +71,7 @@ def register(app: typer.Typer) -> None:
         check_seed(seed)
         check_closed_loop_batch(runs, round(duration / DT_S), 10, chunk, len(names))
         # the heavy imports (jax) only after the arguments are checked: bad input fails fast
-        from harv_jax.evaluation.mc_study import monte_carlo, write_monte_carlo
+        from harv_jax.evaluation.montecarlo.study import monte_carlo, write_monte_carlo
 
         for name in names:  # fail fast, before creating the output directory
             build_controller(name, options)

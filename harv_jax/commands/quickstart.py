@@ -66,7 +66,7 @@ def register(app: typer.Typer) -> None:
         check_closed_loop_batch(runs, round(DURATION_S / DT_S), 10, CHUNK, len(names))
         # the heavy imports (jax) only after the arguments are checked: bad input fails fast
         from harv_jax.evaluation.comparison import FIXED_STATE, compare, write_comparison
-        from harv_jax.evaluation.mc_study import monte_carlo, write_monte_carlo
+        from harv_jax.evaluation.montecarlo.study import monte_carlo, write_monte_carlo
         from harv_jax.report import build_report
 
         for name in names:

@@ -73,7 +73,7 @@ def register(app: typer.Typer) -> None:
         )
         from harv_jax.control.registry import build_controller, parse_controllers
         from harv_jax.errors import UsageError
-        from harv_jax.evaluation.disturbance_spec import parse_turbulence
+        from harv_jax.evaluation.montecarlo.disturbances import parse_turbulence
         from harv_jax.evaluation.robustness import SWEEP_NAMES, levels_from_options
         from harv_jax.guards import check_closed_loop_batch, check_seed
 

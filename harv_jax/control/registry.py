@@ -23,7 +23,7 @@ import dataclasses
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
 
-from harv_jax.control.hybrid_settings import DEFAULT_ZETA, ZETA_SCHEDULES
+from harv_jax.control.hybrid.settings import DEFAULT_ZETA, ZETA_SCHEDULES
 from harv_jax.errors import UsageError
 from harv_jax.task.measurement_path import (
     ESO_SUFFIX,
@@ -49,7 +49,7 @@ class ControllerOptions:
 
     Attributes:
         policy: rl/hybrid policy spec (``harv_jax.policy.resolve_policy``; None: the shipped default).
-        zeta: the hybrid's zeta schedule (``harv_jax.control.hybrid.ZETA_SCHEDULES``).
+        zeta: the hybrid's zeta schedule (``harv_jax.control.hybrid.law.ZETA_SCHEDULES``).
         switching: the SMC's switching law, ``"sat"`` (boundary layer) or ``"sign"`` (the paper's).
     """
 
@@ -124,7 +124,7 @@ def _build_rl(opts: ControllerOptions) -> Controller:
 
 
 def _build_hybrid(opts: ControllerOptions) -> Controller:
-    from harv_jax.control.hybrid import HybridConfig, make_hybrid
+    from harv_jax.control.hybrid.law import HybridConfig, make_hybrid
 
     pol = _policy(opts.policy)
     if opts.zeta not in ZETA_SCHEDULES:
@@ -141,7 +141,7 @@ CONTROLLERS: dict[str, ControllerEntry] = {
     "hybrid": ControllerEntry(
         _build_hybrid,
         ("policy", "zeta"),
-        "policy + SMC feedback, scheduled by zeta (harv_jax.control.hybrid)",
+        "policy + SMC feedback, scheduled by zeta (harv_jax.control.hybrid.law)",
         lambda opts: f"hybrid:{opts.zeta}",
     ),
     "smc-brake": ControllerEntry(

@@ -3,7 +3,7 @@
 For each scenario every controller flies from the same state ([`harv_jax.evaluation.flight.fly`][]);
 [`compare`][] returns a [`Comparison`][] with one metrics row per scenario and controller
 (``summary.COMPARE_COLUMNS``) and, when ``smc`` is among the controllers, every other controller against it
-on the same scenarios (``paired.paired_vs_smc``); [`write_comparison`][] writes the overlaid time
+on the same scenarios (``montecarlo.paired.paired_vs_smc``); [`write_comparison`][] writes the overlaid time
 histories in the paper's four-figure layout, the metrics table (Markdown + CSV) and ``compare.json``.
 """
 
@@ -19,9 +19,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from harv_jax import atomic
-from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
 from harv_jax.evaluation.flight import FlightResult, fly
-from harv_jax.evaluation.paired import REFERENCE_CONTROLLER, paired_vs_smc, times_nr_at_run_s
+from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec
+from harv_jax.evaluation.montecarlo.paired import REFERENCE_CONTROLLER, paired_vs_smc, times_nr_at_run_s
 from harv_jax.evaluation.summary import COMPARE_COLUMNS, controllers_setting
 from harv_jax.numfmt import fmt_num, write_json
 from harv_jax.task.spec import DT_S, H0_FT
@@ -97,7 +97,7 @@ def row_of(scenario: str, controller: str, res: FlightResult) -> dict[str, Any]:
 def add_vs_smc(rows: list[dict[str, Any]], run_length_s: float) -> dict[str, dict[str, Any]]:
     """Fill in ``recovery_time_vs_smc`` (this row's ``recovery_time_nr_at_run_s`` over smc's on the same
     scenario) and return every other controller against smc over the scenarios
-    (``paired.paired_vs_smc``); nothing when smc is not among the rows."""
+    (``montecarlo.paired.paired_vs_smc``); nothing when smc is not among the rows."""
     by = {(r["scenario"], r["controller"]): r["recovery_time_nr_at_run_s"] for r in rows}
     scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
     if not any(c == REFERENCE_CONTROLLER for _, c in by):
@@ -119,8 +119,8 @@ class Comparison:
     Attributes:
         flights: scenario -> controller -> FlightResult.
         rows: one metrics row (COMPARE_COLUMNS) per scenario and controller.
-        vs_smc: controller -> ``paired.paired_vs_reference`` against smc over the scenarios (not-recovered
-            flights at the run length); empty when smc was not flown.
+        vs_smc: controller -> ``montecarlo.paired.paired_vs_reference`` against smc over the scenarios
+            (not-recovered flights at the run length); empty when smc was not flown.
         certificates: ``"<scenario>/<controller>"`` -> the flight's certificate (controllers that have one).
         h0_ft: scenario -> initial altitude, ft.
         settings: the run's settings (the top of compare.json).

@@ -15,9 +15,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from harv_jax import atomic
-from harv_jax.control.hybrid_settings import DEFAULT_ZETA
+from harv_jax.control.hybrid.settings import DEFAULT_ZETA
 from harv_jax.control.registry import ControllerOptions
-from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
+from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec
 from harv_jax.task.spec import DT_S
 
 if TYPE_CHECKING:
@@ -199,7 +199,7 @@ def fly(
     spec = disturbances or DisturbanceSpec()
     extra = {}
     if spec.active:
-        from harv_jax.evaluation.monte_carlo import sample_mc_inputs
+        from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs
 
         run0 = jax.tree.map(
             lambda a: a[0], sample_mc_inputs(jax.random.key(seed), 1, params, disturbances=spec)

@@ -26,8 +26,8 @@ from harv_jax.aircraft.randomize import default_aircraft_randomization
 from harv_jax.control.base import Controller
 from harv_jax.control.rl import make_rl_controller
 from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.monte_carlo import sample_mc_inputs
-from harv_jax.evaluation.paired import times_nr_at_run_s
+from harv_jax.evaluation.montecarlo.paired import times_nr_at_run_s
+from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 #: Key offsets of the evaluation batch (far from the training seeds and from the Monte Carlo's seed 0).

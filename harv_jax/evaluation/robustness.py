@@ -1,7 +1,7 @@
 """Robustness margins (``harv-jax robustness``): every controller over levels of each disturbance.
 
-For each disturbance of ``harv_jax.evaluation.disturbance_spec`` and each of its levels, one Monte Carlo
-of the same sampled runs (same seed: the same initial states; the same noise sequence, gust and aircraft
+For each disturbance of ``harv_jax.evaluation.montecarlo.disturbances`` and each of its levels, one Monte
+Carlo of the same sampled runs (same seed: the same initial states; the same noise sequence, gust and aircraft
 for every controller of a run), the others off. All levels of all disturbances fly one closed loop per
 controller (zero levels act as none), so each controller's rollout compiles once.
 
@@ -19,7 +19,7 @@ import numpy as np
 
 from harv_jax.control.base import Controller
 from harv_jax.errors import UsageError
-from harv_jax.evaluation.disturbance_spec import (
+from harv_jax.evaluation.montecarlo.disturbances import (
     DISTURBANCE_NAMES,
     LEVEL_OPTIONS,
     MAX_LEVELS,
@@ -135,7 +135,7 @@ def robustness_sweep(
     import jax.numpy as jnp
 
     from harv_jax.aircraft.registry import resolve_aircraft
-    from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs, with_full_structure
+    from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs, with_full_structure
     from harv_jax.evaluation.summary import summarize_controller
 
     say = progress or (lambda _msg: None)

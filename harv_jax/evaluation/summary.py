@@ -2,7 +2,7 @@
 
 - ``summary.json`` of ``harv-jax mc``: [`mc_summary`][] with one [`summarize_controller`][] block
   per controller (and, when ``smc`` is in the run, a ``vs_smc`` block of
-  ``harv_jax.evaluation.paired.paired_vs_reference`` in every other controller's);
+  ``harv_jax.evaluation.montecarlo.paired.paired_vs_reference`` in every other controller's);
 - ``envelope.json`` of ``harv-jax envelope``: [`envelope_summary`][] with [`summarize_envelope`][]
   blocks;
 - ``metrics.json`` of ``harv-jax fly``: [`flight_summary`][] (settings `FLY_SETTING_KEYS` and the
@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 
 from harv_jax.evaluation.metrics import RunMetrics
-from harv_jax.evaluation.monte_carlo import MCRunOutput, gate_summary, simplex_summary
-from harv_jax.evaluation.paired import mean_nr_at_run_s
+from harv_jax.evaluation.montecarlo.paired import mean_nr_at_run_s
+from harv_jax.evaluation.montecarlo.rollout import MCRunOutput, gate_summary, simplex_summary
 from harv_jax.evaluation.summary_documents import COMPARE_COLUMNS as COMPARE_COLUMNS
 from harv_jax.evaluation.summary_documents import FLY_SETTING_KEYS as FLY_SETTING_KEYS
 from harv_jax.evaluation.summary_documents import controllers_setting as controllers_setting

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from harv_jax import atomic
-from harv_jax.evaluation.paired import times_nr_at_run_s
+from harv_jax.evaluation.montecarlo.paired import times_nr_at_run_s
 from harv_jax.optimal.search import SearchConfig
 from harv_jax.optimal.study import OPTIMAL, OptimalStudy
 from harv_jax.task.spec import DT_S, H0_FT
@@ -169,7 +169,7 @@ def build_summary(
 def write_optimal(out_dir: Path, study: OptimalStudy, summary: dict[str, Any], cfg: SearchConfig) -> None:
     """runs.csv, optimal_runs.csv, summary.json, vs_optimal.png, search_progress.png (the report section,
     optimal_report.md, is written by the command: ``harv_jax.report`` sits above this layer)."""
-    from harv_jax.evaluation.mc_study import write_runs_csv
+    from harv_jax.evaluation.montecarlo.study import write_runs_csv
     from harv_jax.numfmt import write_json
     from harv_jax.plots.optimal import plot_search_progress, plot_vs_optimal
 

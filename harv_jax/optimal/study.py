@@ -24,8 +24,8 @@ from harv_jax.aircraft.registry import resolve_aircraft
 from harv_jax.control.base import Controller
 from harv_jax.dynamics.state import TRACKED_INDEX, BodyState, from_wind, to_wind
 from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.monte_carlo import TERMINAL_WINDOW_S, MCRunOutput, sample_mc_inputs
-from harv_jax.evaluation.paired import times_nr_at_run_s
+from harv_jax.evaluation.montecarlo.paired import times_nr_at_run_s
+from harv_jax.evaluation.montecarlo.rollout import TERMINAL_WINDOW_S, MCRunOutput, sample_mc_inputs
 from harv_jax.optimal.schedule import BRAKE_SWITCH_FPS, NO_BRAKE_SWITCH_FPS
 from harv_jax.optimal.search import SearchConfig, SearchInputs, SearchResult, search
 from harv_jax.task.criteria import tracking_errors

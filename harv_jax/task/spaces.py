@@ -6,8 +6,8 @@ wind-axis state, then the target.
 
 Action [3] in [-1, 1],
 mapped affinely to [u_min, u_max] per channel (de, da, dr). The env (``harv_jax.env``) and the learned
-controllers (``control.rl``, ``control.hybrid``) both use these functions, so a policy sees in flight exactly
-what it saw in training.
+controllers (``control.rl``, ``control.hybrid.law``) both use these functions, so a policy sees in flight
+exactly what it saw in training.
 """
 
 from __future__ import annotations

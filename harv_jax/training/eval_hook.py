@@ -10,7 +10,7 @@ from typing import Any
 import jax
 import numpy as np
 
-from harv_jax.control.hybrid import HybridConfig, make_hybrid
+from harv_jax.control.hybrid.law import HybridConfig, make_hybrid
 from harv_jax.control.registry import with_measurement_path
 from harv_jax.control.rl import make_rl_controller
 from harv_jax.env import EnvParams

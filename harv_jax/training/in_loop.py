@@ -1,6 +1,6 @@
 """Controller in the loop: the recovery env with the hybrid law applied inside its step (residual learning).
 
-The policy's action a in [-1, 1]^3 is the hybrid's u_RL (``control.hybrid``): at every step the hybrid
+The policy's action a in [-1, 1]^3 is the hybrid's u_RL (``control.hybrid.law``): at every step the hybrid
 computes u = u_RL + zeta u_fb (its schedule, safety filter and supervisor included) from the true
 wind-axis state and the episode's target, and the env flies u (mapped back to a normalized action,
 exactly invertible). The policy therefore learns what to add to an SMC that is already there, in the
@@ -22,8 +22,8 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from harv_jax.control.hybrid import HybridConfig, HybridState, make_hybrid
-from harv_jax.control.hybrid_settings import ZETA_SCHEDULES, HybridGains
+from harv_jax.control.hybrid.law import HybridConfig, HybridState, make_hybrid
+from harv_jax.control.hybrid.settings import ZETA_SCHEDULES, HybridGains
 from harv_jax.control.smc import SMCConfig
 from harv_jax.env import Env, EnvState
 from harv_jax.env.auto_reset import with_auto_reset

@@ -20,14 +20,14 @@ from flax import struct
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from harv_jax.control.base import Controller
-from harv_jax.control.scheduling import SIMPLEX_REASONS
+from harv_jax.control.hybrid.zeta import SIMPLEX_REASONS
 from harv_jax.dynamics.state import TRACKED_INDEX
 from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.mc_inputs import MC_SAMPLED_STATES as MC_SAMPLED_STATES
-from harv_jax.evaluation.mc_inputs import MCInputs
-from harv_jax.evaluation.mc_inputs import sample_mc_inputs as sample_mc_inputs
-from harv_jax.evaluation.mc_inputs import with_full_structure as with_full_structure
 from harv_jax.evaluation.metrics import RunMetrics
+from harv_jax.evaluation.montecarlo.inputs import MC_SAMPLED_STATES as MC_SAMPLED_STATES
+from harv_jax.evaluation.montecarlo.inputs import MCInputs
+from harv_jax.evaluation.montecarlo.inputs import sample_mc_inputs as sample_mc_inputs
+from harv_jax.evaluation.montecarlo.inputs import with_full_structure as with_full_structure
 from harv_jax.guards import AUTO_CHUNK_RUNS_PER_CPU_DEVICE, auto_chunk
 from harv_jax.task.criteria import tracking_errors
 from harv_jax.task.spec import DT_S
@@ -227,9 +227,9 @@ def gate_summary(info: dict[str, Any]) -> dict[str, Any]:
             "holds_unsaturated": pooled("cert_free_holds", "cert_free_defined"),
             "holds_saturated": pooled("cert_sat_holds", "cert_sat_defined"),
             "saturated_step_fraction": float(sat_share),
-            "note": "harv_jax.control.gate's condition (outside the band: s*s_dot <= -eta |s| |sw(s)|) on "
-            "the controller model for the command that acts; steps with an exact solve and the channel in "
-            "its sliding mode",
+            "note": "harv_jax.control.hybrid.gate's condition (outside the band: s*s_dot <= -eta |s| "
+            "|sw(s)|) on the controller model for the command that acts; steps with an exact solve and the "
+            "channel in its sliding mode",
         },
     }
 

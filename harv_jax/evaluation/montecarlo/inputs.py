@@ -24,7 +24,7 @@ from harv_jax.aircraft.randomize import (
 from harv_jax.dynamics.disturbances import DEFAULT_GUST_TAU_S, DEFAULT_NOISE_STD_MAX, DisturbanceParams
 from harv_jax.dynamics.state import WIND_INDEX
 from harv_jax.dynamics.turbulence import INTENSITIES, TurbulenceParams, turbulence_params
-from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
+from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec
 from harv_jax.task.scenarios import sample_table_states
 from harv_jax.task.spec import H0_FT
 

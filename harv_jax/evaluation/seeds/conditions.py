@@ -37,14 +37,14 @@ import numpy as np
 
 from harv_jax import atomic
 from harv_jax.aircraft.params import AircraftParams
-from harv_jax.control.hybrid import HybridConfig, make_hybrid
-from harv_jax.control.hybrid_settings import DEFAULT_ZETA
+from harv_jax.control.hybrid.law import HybridConfig, make_hybrid
+from harv_jax.control.hybrid.settings import DEFAULT_ZETA
 from harv_jax.control.registry import build_controller, policy_path, with_measurement_path
 from harv_jax.control.rl import make_rl_controller
 from harv_jax.evaluation.closed_loop import closed_loop, score
-from harv_jax.evaluation.disturbance_spec import DisturbanceSpec, parse_disturbances
-from harv_jax.evaluation.mc_inputs import MCInputs, sample_mc_inputs
-from harv_jax.evaluation.monte_carlo import run_mc, shard_runs
+from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec, parse_disturbances
+from harv_jax.evaluation.montecarlo.inputs import MCInputs, sample_mc_inputs
+from harv_jax.evaluation.montecarlo.rollout import run_mc, shard_runs
 from harv_jax.guards import AUTO_CHUNK_RUNS_PER_CPU_DEVICE, auto_chunk
 from harv_jax.policy import Policy, traced_action
 from harv_jax.task.measurement_path import MeasurementPath

@@ -1,12 +1,12 @@
 """The hybrid's zeta schedules as objects: ``zeta_schedule(name, ...)`` picks one when the hybrid is built.
 
-A schedule acts twice in a hybrid step (``harv_jax.control.hybrid``):
+A schedule acts twice in a hybrid step (``harv_jax.control.hybrid.law``):
 
 - ``watch``, before the feedback term: whether the SMC flies alone (fallback). Every schedule but
-  ``simplex`` runs the supervisor (``control.supervisor``; off when the config disables it); ``simplex`` runs
-  its own monitor (``scheduling.simplex_step``) instead.
+  ``simplex`` runs the supervisor (``control.hybrid.supervisor``; off when the config disables it);
+  ``simplex`` runs its own monitor (``zeta.simplex_step``) instead.
 - ``weigh``, after the feedback term: zeta per channel and the command before the safety filter
-  (``hysteresis``, ``continuous``: ``control.scheduling``; ``gated``: ``control.gate``; ``always``: 1;
+  (``hysteresis``, ``continuous``: ``control.hybrid.zeta``; ``gated``: ``control.hybrid.gate``; ``always``: 1;
   ``never`` and ``simplex``: 0). zeta = 1 in fallback.
 
 The other fields are what the hybrid reads of the schedule: the SMC gains of its feedback term, the gate
@@ -20,9 +20,10 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from harv_jax.control.gate import GateGains, default_gate_gains, gate
-from harv_jax.control.hybrid_settings import HybridGains
-from harv_jax.control.scheduling import (
+from harv_jax.control.hybrid.gate import GateGains, default_gate_gains, gate
+from harv_jax.control.hybrid.settings import HybridGains
+from harv_jax.control.hybrid.supervisor import SupervisorState, outside_box, record_intervention, supervise
+from harv_jax.control.hybrid.zeta import (
     SIMPLEX_REASONS,
     SimplexState,
     ZetaState,
@@ -31,7 +32,6 @@ from harv_jax.control.scheduling import (
     simplex_step,
 )
 from harv_jax.control.smc import SMCConfig, SMCGains, SMCTerms
-from harv_jax.control.supervisor import SupervisorState, outside_box, record_intervention, supervise
 from harv_jax.dynamics.state import vt_fps
 from harv_jax.task.criteria import omega_norm_radps, tracking_errors
 

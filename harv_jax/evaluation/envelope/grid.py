@@ -36,7 +36,7 @@ import numpy as np
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
 from harv_jax.dynamics.state import WIND_INDEX, WIND_STATE_NAMES
-from harv_jax.evaluation.monte_carlo import MCInputs, MCRunOutput, run_mc
+from harv_jax.evaluation.montecarlo.rollout import MCInputs, MCRunOutput, run_mc
 from harv_jax.task.spec import DT_S, H0_FT, RESET_BOUNDS, V_MAX_FPS
 from harv_jax.units import DEG_PER_RAD
 

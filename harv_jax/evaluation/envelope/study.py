@@ -1,7 +1,7 @@
 """A recovery envelope map of registered controllers (``harv-jax envelope``): run and write its folder.
 
 [`envelope_study`][] flies every controller from every point of an ``EnvelopeGrid``
-(``harv_jax.evaluation.envelope_map``) and returns an [`EnvelopeStudy`][]; [`write_envelope`][]
+(``harv_jax.evaluation.envelope.grid``) and returns an [`EnvelopeStudy`][]; [`write_envelope`][]
 writes envelope_recovery.png, envelope_time.png, envelope.json, envelope_grid.csv and envelope_grid.npz.
 """
 
@@ -17,9 +17,9 @@ import numpy as np
 
 from harv_jax import atomic
 from harv_jax.control.base import Controller
-from harv_jax.control.hybrid_settings import DEFAULT_ZETA
-from harv_jax.evaluation.disturbance_spec import DisturbanceSpec
-from harv_jax.evaluation.envelope_map import EnvelopeGrid, EnvelopeMap
+from harv_jax.control.hybrid.settings import DEFAULT_ZETA
+from harv_jax.evaluation.envelope.grid import EnvelopeGrid, EnvelopeMap
+from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec
 from harv_jax.task.spec import DT_S
 
 if TYPE_CHECKING:
@@ -56,14 +56,14 @@ def envelope_study(
     aircraft: str | AircraftParams | None = None,
 ) -> EnvelopeStudy:
     """Fly every controller from every grid point (no files); ``disturbances``: the draws of a Monte Carlo
-    with ``seed`` and as many runs (``monte_carlo.sample_mc_inputs``), the grid's initial states;
+    with ``seed`` and as many runs (``montecarlo.inputs.sample_mc_inputs``), the grid's initial states;
     ``aircraft``: the nominal aircraft (a registry name or ``AircraftParams``; None: the default)."""
     import jax
     import jax.numpy as jnp
 
     from harv_jax.aircraft.registry import resolve_aircraft
     from harv_jax.control.registry import ControllerOptions, build_controller
-    from harv_jax.evaluation.envelope_map import envelope_inputs, grid_description, run_envelope
+    from harv_jax.evaluation.envelope.grid import envelope_inputs, grid_description, run_envelope
     from harv_jax.evaluation.summary import RECOVERY_RATE, envelope_summary, summarize_envelope
 
     say = progress or (lambda _msg: None)
@@ -79,7 +79,7 @@ def envelope_study(
     inputs = envelope_inputs(jax.random.key(seed), grid, nominal)
     spec = disturbances or DisturbanceSpec()
     if spec.active:
-        from harv_jax.evaluation.monte_carlo import sample_mc_inputs
+        from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs
 
         drawn = sample_mc_inputs(jax.random.key(seed), grid.n_runs, nominal, disturbances=spec)
         inputs = drawn.replace(x0_wind=inputs.x0_wind, keys=inputs.keys)
@@ -157,7 +157,7 @@ def write_grid_csv(path: Path, grid: EnvelopeGrid, maps: dict[str, EnvelopeMap])
 
 def write_envelope(out_dir: Path, study: EnvelopeStudy) -> None:
     """envelope_recovery.png, envelope_time.png, envelope_grid.npz, envelope_grid.csv and envelope.json."""
-    from harv_jax.evaluation.envelope_map import GRID_AXES, grid_states
+    from harv_jax.evaluation.envelope.grid import GRID_AXES, grid_states
     from harv_jax.numfmt import write_json
     from harv_jax.plots.maps import plot_outcome_maps, plot_time_maps
     from harv_jax.task.criteria import OUTCOME_NAMES

@@ -1,7 +1,7 @@
 """A Monte Carlo study of registered controllers (``harv-jax mc``): run, summarize, write its folder.
 
 [`monte_carlo`][] flies every controller on the same sampled aircraft and initial states
-(``monte_carlo.sample_mc_inputs``, common random numbers) and returns a [`MonteCarloStudy`][];
+(``montecarlo.inputs.sample_mc_inputs``, common random numbers) and returns a [`MonteCarloStudy`][];
 [`write_monte_carlo`][] writes summary.json, the band figures and CSVs, terminal_errors.png and runs.csv.
 """
 
@@ -17,9 +17,9 @@ import numpy as np
 
 from harv_jax import atomic
 from harv_jax.control.base import Controller
-from harv_jax.control.hybrid_settings import DEFAULT_ZETA
-from harv_jax.evaluation.disturbance_spec import DisturbanceSpec, describe_disturbances
-from harv_jax.evaluation.monte_carlo import MCRunOutput
+from harv_jax.control.hybrid.settings import DEFAULT_ZETA
+from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec, describe_disturbances
+from harv_jax.evaluation.montecarlo.rollout import MCRunOutput
 from harv_jax.numfmt import fmt_num
 from harv_jax.task.spec import DT_S, H0_FT
 from harv_jax.task.turbulent_criterion import criterion_record
@@ -72,16 +72,16 @@ def monte_carlo(
 
     ``randomize``: the plant aircraft drawn per run, the controllers built on the nominal one (unless
     ``disturbances.controller_knows_aircraft``); ``disturbances``: noise, delay, gust, model error and lag
-    (``harv_jax.evaluation.disturbance_spec``; None: none). ``aircraft``: the nominal aircraft, a name of
-    ``harv_jax.aircraft.registry`` or ``AircraftParams`` (None: the registry's default); recorded by name.
+    (``harv_jax.evaluation.montecarlo.disturbances``; None: none). ``aircraft``: the nominal aircraft, a name
+    of ``harv_jax.aircraft.registry`` or ``AircraftParams`` (None: the registry's default); recorded by name.
     """
     import jax
     import jax.numpy as jnp
 
     from harv_jax.aircraft.registry import resolve_aircraft
     from harv_jax.control.registry import ControllerOptions, build_controller
-    from harv_jax.evaluation.monte_carlo import run_mc, sample_mc_inputs
-    from harv_jax.evaluation.paired import paired_vs_smc
+    from harv_jax.evaluation.montecarlo.paired import paired_vs_smc
+    from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
     from harv_jax.evaluation.summary import mc_summary, summarize_controller
 
     say = progress or (lambda _msg: None)

@@ -3,25 +3,25 @@
 One step, for the wind state x and the reference y_ref:
 
 1. supervisor: fallback (SMC-only) if x left the trusted box or the filter intervened too often
-   (``harv_jax.control.supervisor``);
+   (``harv_jax.control.hybrid.supervisor``);
 2. learned command: u_RL = action_to_command(policy(observation(x, y_ref))), capped to a fraction of
    each deflection range (``safety.cap_authority``); u_RL = 0 in fallback;
 3. feedback term designed on the RL-compensated dynamics (``smc_command(..., u_offset_rad=u_RL)``):
    u_fb = (L_g L_f y)^-1 (nu - L_f^2 y - L_g L_f y u_RL), nu the SMC's (reaching law included);
-4. zeta from the schedule (``harv_jax.control.zeta_schedules``: one object per name, picked when the hybrid
+4. zeta from the schedule (``harv_jax.control.hybrid.schedules``: one object per name, picked when the hybrid
    is built; 1 in fallback);
 5. u = u_RL + zeta u_fb, then the position/rate box of the safety filter (``safety.filter_command``).
 
 The ``simplex`` schedule (Simplex architecture; the default) lets the policy act alone (zeta = 0) and hands
 over to the SMC for good (zeta = 1, u_RL = 0) on the first step the state leaves a box the SMC is shown to
 recover from, the policy's command is non-finite, or, from a deadline on, a tracking error leaves a tube
-while the aircraft is not slow and calm (``scheduling.simplex_step``; it replaces step 1's supervisor): the
+while the aircraft is not slow and calm (``zeta.simplex_step``; it replaces step 1's supervisor): the
 policy's speed is kept where it recovers, and the SMC's recovery covers the rest. Its SMC flies with the
-softer ``scheduling.simplex_fallback_gains`` (less control activity after the hand-over); every other schedule
+softer ``zeta.simplex_fallback_gains`` (less control activity after the hand-over); every other schedule
 uses ``HybridGains.smc``.
 
-The ``gated`` schedule replaces 4-5 by ``harv_jax.control.gate``: a zeta per channel, the least that keeps
-the reaching condition for the command that acts (clipped to this step's box), u = u_RL + A^-1 (zeta (.)
+The ``gated`` schedule replaces 4-5 by ``harv_jax.control.hybrid.gate``: a zeta per channel, the least that
+keeps the reaching condition for the command that acts (clipped to this step's box), u = u_RL + A^-1 (zeta (.)
 A u_fb) (= u_RL + zeta u_fb for equal zetas); the SMC's integral then runs at every step (s contains it,
 and the gate drives s to 0, so the integral removes the learned law's bias instead of winding up).
 
@@ -44,10 +44,16 @@ from flax import struct
 
 from harv_jax.aircraft.params import AircraftParams
 from harv_jax.control.base import Controller
-from harv_jax.control.gate import certificate_holds, default_gate_gains
-from harv_jax.control.hybrid_settings import DEFAULT_ZETA, ZETA_SCHEDULES, HybridGains, ZetaScheduleName
-from harv_jax.control.safety import cap_authority, filter_command, limit_box
-from harv_jax.control.scheduling import (
+from harv_jax.control.hybrid.gate import certificate_holds, default_gate_gains
+from harv_jax.control.hybrid.safety import cap_authority, filter_command, limit_box
+from harv_jax.control.hybrid.schedules import ZetaInputs, zeta_schedule
+from harv_jax.control.hybrid.settings import DEFAULT_ZETA, ZETA_SCHEDULES, HybridGains, ZetaScheduleName
+from harv_jax.control.hybrid.supervisor import (
+    SupervisorState,
+    default_supervisor_gains,
+    supervisor_init,
+)
+from harv_jax.control.hybrid.zeta import (
     SimplexGains,
     SimplexState,
     ZetaState,
@@ -56,12 +62,6 @@ from harv_jax.control.scheduling import (
     zeta_init,
 )
 from harv_jax.control.smc import SMCConfig, default_gains, smc_command, update_integral
-from harv_jax.control.supervisor import (
-    SupervisorState,
-    default_supervisor_gains,
-    supervisor_init,
-)
-from harv_jax.control.zeta_schedules import ZetaInputs, zeta_schedule
 from harv_jax.task.spaces import action_to_command, observation
 from harv_jax.task.spec import (
     RECOVERY_ALPHA_TOL_RAD,
@@ -138,8 +138,8 @@ class HybridConfig:
 
     Attributes:
         schedule: zeta schedule: ``simplex`` (default, as the CLI: zeta = 0 until a monitor trips, then 1
-            for good: ``scheduling.simplex_step``), ``continuous``, ``hysteresis`` (the paper's tube),
-            ``gated`` (per channel, from the reaching condition: ``harv_jax.control.gate``), ``always``
+            for good: ``zeta.simplex_step``), ``continuous``, ``hysteresis`` (the paper's tube),
+            ``gated`` (per channel, from the reaching condition: ``harv_jax.control.hybrid.gate``), ``always``
             (zeta = 1), ``never`` (zeta = 0, the filtered RL-only law).
         smc: SMCConfig of the feedback term.
         supervisor: enable the fallback supervisor.
@@ -200,8 +200,8 @@ def make_hybrid(
         policy_unmodified (the command that acts is the policy's, bit for bit), correction_rad [3]
         (|u - u_RL|), fallback, fallback_entered, fallback_reason, u_rl_rad [3], u_fb_rad [3],
         u_unfiltered_rad [3], cap_active [3], limit_active [3], intervened, e, e_dot, s [3], w_mu, saturated,
-        integral_rad_s [3], the certificate (``control.gate.certificate_holds``) of the command that acts,
-        split by whether the box clipped it: cert_free_defined, cert_free_holds, cert_sat_defined,
+        integral_rad_s [3], the certificate (``control.hybrid.gate.certificate_holds``) of the command that
+        acts, split by whether the box clipped it: cert_free_defined, cert_free_holds, cert_sat_defined,
         cert_sat_holds (bool [3]; defined: solve exact, channel in its sliding mode), and with the
         ``simplex`` schedule handover_box, handover_deadline, handover_nonfinite (it handed over to the SMC
         for that reason, at this step or before).

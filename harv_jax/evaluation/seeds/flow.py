@@ -11,8 +11,7 @@ from typing import Any
 
 from harv_jax import atomic
 from harv_jax.aircraft.registry import resolve_aircraft
-from harv_jax.evaluation.evaluation_report import build_document, figure, markdown
-from harv_jax.evaluation.seed_evaluation import (
+from harv_jax.evaluation.seeds.conditions import (
     CONDITIONS,
     POLICY_CONTROLLERS,
     EvalSettings,
@@ -21,6 +20,7 @@ from harv_jax.evaluation.seed_evaluation import (
     read_cell,
     write_cell,
 )
+from harv_jax.evaluation.seeds.report import build_document, figure, markdown
 from harv_jax.optimal.outputs import cpu_model
 
 

@@ -1,7 +1,7 @@
 """The hybrid's settings: its traced gains, the names of its zeta schedules and the default schedule.
 
-Read by the hybrid (``harv_jax.control.hybrid``), its zeta schedules (``harv_jax.control.zeta_schedules``)
-and the controller registry, none of which imports another for them.
+Read by the hybrid (``harv_jax.control.hybrid.law``), its zeta schedules
+(``harv_jax.control.hybrid.schedules``) and the controller registry, none of which imports another for them.
 """
 
 from __future__ import annotations
@@ -11,16 +11,16 @@ from typing import Literal
 import jax.numpy as jnp
 from flax import struct
 
-from harv_jax.control.gate import GateGains
-from harv_jax.control.scheduling import SimplexGains
+from harv_jax.control.hybrid.gate import GateGains
+from harv_jax.control.hybrid.supervisor import SupervisorGains
+from harv_jax.control.hybrid.zeta import SimplexGains
 from harv_jax.control.smc import SMCGains
-from harv_jax.control.supervisor import SupervisorGains
 
 ZetaScheduleName = Literal["hysteresis", "continuous", "gated", "simplex", "always", "never"]
 ZETA_SCHEDULES: tuple[str, ...] = ("hysteresis", "continuous", "gated", "simplex", "always", "never")
 
 #: The hybrid's default zeta schedule: the policy alone until a monitor hands over to the SMC for good
-#: (``control.scheduling.simplex_step``; ``experiments/hybrid_simplex/README.md``).
+#: (``control.hybrid.zeta.simplex_step``; ``experiments/hybrid_simplex/README.md``).
 DEFAULT_ZETA = "simplex"
 
 
@@ -37,7 +37,7 @@ class HybridGains:
             zeta = floor + (1 - floor) zeta_schedule. The paper's stability analysis assumes zeta in
             (0, 1]; its tube sets zeta = 0 inside (floor 0). Default ``DEFAULT_ZETA_FLOOR``.
         authority_frac: [3] cap of |u_RL| as a fraction of each channel's limits, in (0, 1].
-        gate: GateGains of the ``gated`` schedule (``harv_jax.control.gate``; every schedule logs its
+        gate: GateGains of the ``gated`` schedule (``harv_jax.control.hybrid.gate``; every schedule logs its
             certificate).
         supervisor: SupervisorGains.
         simplex: SimplexGains of the ``simplex`` schedule.

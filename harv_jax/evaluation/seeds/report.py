@@ -1,10 +1,10 @@
 """What ``harv-jax evaluate`` reports: each seed's numbers, the acceptance criteria, IQM over seeds.
 
-From the cells of ``harv_jax.evaluation.seed_evaluation`` (per-run arrays of every controller on every
+From the cells of ``harv_jax.evaluation.seeds.conditions`` (per-run arrays of every controller on every
 condition) this module computes each seed's flat metrics (``<condition>.<controller>.<metric>``, the names
-``harv_jax.evaluation.acceptance`` reads), judges them, and writes ``evaluate.json``, ``evaluate.md`` and
-``evaluate.png``. Times count a run not recovered at the run length; "slower" is slower than the condition's
-reference controller by more than 1 s on the same run.
+``harv_jax.evaluation.seeds.acceptance`` reads), judges them, and writes ``evaluate.json``, ``evaluate.md``
+and ``evaluate.png``. Times count a run not recovered at the run length; "slower" is slower than the
+condition's reference controller by more than 1 s on the same run.
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ from typing import Any
 import numpy as np
 
 from harv_jax import atomic
-from harv_jax.evaluation.acceptance import CRITERIA, judge, passes
-from harv_jax.evaluation.paired import paired_vs_reference, times_nr_at_run_s
-from harv_jax.evaluation.seed_evaluation import BRAKE_ZOOM, CONDITIONS, POLICY_CONTROLLERS
+from harv_jax.evaluation.montecarlo.paired import paired_vs_reference, times_nr_at_run_s
 from harv_jax.evaluation.seed_stats import iqm_ci
+from harv_jax.evaluation.seeds.acceptance import CRITERIA, judge, passes
+from harv_jax.evaluation.seeds.conditions import BRAKE_ZOOM, CONDITIONS, POLICY_CONTROLLERS
 
 #: The metrics of each (condition, controller) that the per-seed table shows.
 TABLE_METRICS = ("recovered", "mean_over_ref", "slower_than_ref", "tv_over_ref")

@@ -1,6 +1,6 @@
 """The acceptance criteria of a trained policy, defined once: `CRITERIA`.
 
-``harv-jax evaluate`` (``harv_jax.evaluation.seed_evaluation``) computes, for every seed of a training run,
+``harv-jax evaluate`` (``harv_jax.evaluation.seeds.conditions``) computes, for every seed of a training run,
 a flat dict of numbers named ``<condition>.<controller>.<metric>`` (``clean.rl.recovered``,
 ``disturbed.rl.mean_over_ref``, ...); each criterion reads one of them and compares it with its bar. A seed
 passes a criterion when its number is at or on the good side of the bar; a number that could not be
