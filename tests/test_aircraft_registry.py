@@ -158,6 +158,7 @@ def _runs(path) -> list[dict[str, str]]:
         return list(csv.DictReader(f))
 
 
+@pytest.mark.slow
 def test_mc_flies_the_registered_aircraft(heavy, hold, monkeypatch, capsys, tmp_path):
     """Same seed, same initial states; the heavy aircraft flies another trajectory, recorded by name."""
     args = ("--controller", hold, "--runs", "4", "--duration", "10.5", "--seed", "3")

@@ -146,6 +146,7 @@ def _toy_demos(n: int = 256) -> tuple[np.ndarray, np.ndarray]:
     return obs, np.clip(-x / float(TOY_PARAMS.gain), -1.0, 1.0)
 
 
+@pytest.mark.slow
 def test_training_from_demos_alone_clones_them_is_reproducible_and_recorded(tmp_path):
     cfg = dataclasses.replace(
         CFG,

@@ -89,6 +89,7 @@ def test_spec_none_is_the_undisturbed_monte_carlo_exactly():
         np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.slow
 def test_zero_levels_fly_as_none():
     """Every disturbance on at level zero (noise 0, delay 0, gust 0, the plant's own model): the same
     outcomes, recovery times and histories as the undisturbed loop (a constant command: cheap to compile)."""

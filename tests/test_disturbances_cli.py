@@ -94,6 +94,7 @@ def test_turbulence_on_mc_and_fly_is_recorded_and_its_wind_written(monkeypatch, 
     assert all(w == w for w in wind[-1]) and max(abs(w[1]) for w in wind) > 1.0  # severe: ~20 ft/s std
 
 
+@pytest.mark.slow
 def test_robustness_sweeps_turbulence_and_names_its_margin(monkeypatch, capsys, tmp_path, damper):
     """``robustness --disturbances turbulence``: a row per sigma (0: still air), each scored by its own
     criterion, and the margin in ft/s; ``--turbulence`` is recorded."""

@@ -394,6 +394,7 @@ def test_batch_step_matches_vmap_step(fns):
     chex.assert_trees_all_close(out_batch, out_vmap, rtol=1e-6, atol=1e-6)
 
 
+@pytest.mark.slow
 def test_turbulence_and_lag_draws_are_their_own():
     """The env's turbulence and lag: drawn per episode below their maxima from keys of their own (every
     other draw unchanged), the observation the air data, the paper's env unchanged without them."""

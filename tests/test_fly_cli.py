@@ -141,6 +141,7 @@ def test_fly_spin(monkeypatch, capsys, tmp_path):
     np.testing.assert_allclose(data[:50, header.index("de_cmd")], -0.436)  # pro-spin command held
 
 
+@pytest.mark.slow
 def test_fly_hybrid_with_shipped_partial_policy(monkeypatch, capsys, tmp_path, figure_texts):
     code, out, err = _run(
         monkeypatch, capsys, "--controller", "hybrid", "--policy", "shipped:partial", "--scenario", "random",

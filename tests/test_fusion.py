@@ -63,6 +63,7 @@ def test_evaluated_once_value_and_derivatives() -> None:
     np.testing.assert_allclose(jax.jacrev(lambda v: evaluated_once(fn, v))(x), jax.jacrev(fn)(x), rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_plant_derivatives_through_the_loops() -> None:
     """Reverse mode through the RK4 step (a plain while_loop would refuse it) agrees with forward mode."""
     params = harv()

@@ -132,6 +132,7 @@ def _apply_batch(hy, params, x, state):
     return jax.vmap(hy.apply, in_axes=(0, 0, None, None))(state, x, REF, jax.random.key(0))
 
 
+@pytest.mark.slow
 def test_gated_hybrid_vmaps_over_aircraft_equal_to_single_runs_with_one_trace(tmp_path):
     pol = load(write_fixture_policies(tmp_path)["random"]).deterministic
     hy = make_hybrid(pol, HybridConfig(schedule="gated"))
@@ -189,6 +190,7 @@ def test_gate_summary_pools_steps_over_runs():
     assert gate_summary({"zeta": np.zeros(n)}) == {}
 
 
+@pytest.mark.slow
 def test_mc_cli_flies_the_gated_hybrid_and_summarizes_it(tmp_path):
     import json
 

@@ -217,6 +217,7 @@ def _apply_simplex_batch(hy, params, x, state):
     return jax.vmap(hy.apply, in_axes=(0, 0, None, None))(state, x, REF, jax.random.key(0))
 
 
+@pytest.mark.slow
 def test_vmaps_over_aircraft_equal_to_single_runs_with_one_trace():
     hy = make_hybrid(_linear_policy(4), SIMPLEX)
     n = 6

@@ -60,6 +60,7 @@ def _flight(loop: str):
     return loop_env, _first_steps(loop_env, ACTIONS, loop == "gated")
 
 
+@pytest.mark.slow
 def test_zeta_one_flies_the_smc_whatever_the_policy():
     """With ``always`` (zeta = 1) u = u_SMC: the action does not change the flight (up to float round-off)."""
     _, (_, x, _) = _flight("always")
@@ -84,6 +85,7 @@ def test_interface_and_info():
     chex.assert_tree_all_finite((obs[0], r[0]))
 
 
+@pytest.mark.slow
 def test_trainer_traces_once_and_its_policies_record_the_loop(tmp_path):
     cfg = PPOConfig(total_steps=16 * 8 * 4, num_envs=16, unroll=8, epochs=1, minibatches=2,
                     hidden_sizes=(16,), num_periods=2, seed=0, stagger_episodes=True)  # fmt: skip

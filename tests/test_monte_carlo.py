@@ -90,6 +90,7 @@ def test_auto_chunk_per_device_memory_and_device_multiple(monkeypatch):
         auto_chunk(10, 10, 0, 512)
 
 
+@pytest.mark.slow
 def test_default_chunk_is_automatic_recorded_and_equal_in_outcomes(mc32):
     inputs, out16, _ = mc32
     out, wall = run_mc(make_smc(), inputs, REF, N_STEPS, record_every=10)

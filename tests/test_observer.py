@@ -96,6 +96,7 @@ def test_sensor_noise_reaches_the_estimate_with_the_designed_gain(measured_gains
         assert gain == pytest.approx(design, rel=0.15), (ch, f_hz, eso)
 
 
+@pytest.mark.slow
 def test_an_unpredicted_constant_rate_leaves_a_lag_only_without_the_bias_estimate():
     """A ramp on the measured p (a rate the model does not predict): the plain observer lags it by at least
     rate / (2 pi bandwidth) (more: the model's roll damping pulls the estimate back), the extended-state

@@ -33,6 +33,7 @@ def test_offset_is_piecewise_linear_through_the_knots_and_zero_after() -> None:
     assert np.all(np.abs(at(0.6)) <= np.asarray(OFFSET_AMPLITUDE_RAD))
 
 
+@pytest.mark.slow
 def test_zero_knots_fly_smc_brake_and_smc_exactly_and_iterates_respect_actuator_limits() -> None:
     from harv_jax.aircraft import harv
     from harv_jax.control.registry import build_controller

@@ -133,6 +133,7 @@ def test_registry_name():
     assert isinstance(ctrl, Controller) and isinstance(ctrl.init(harv()), SMCBrakeState)
 
 
+@pytest.mark.slow
 def test_short_monte_carlo_is_finite():
     """16 runs of 20 s: finite metrics, no non-finite outcome, and the schedule brakes on the fast runs."""
     inputs = sample_mc_inputs(jax.random.key(1), 16, harv())
