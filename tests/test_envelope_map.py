@@ -99,7 +99,9 @@ def _single_run(x0_wind, key):
     return m, jnp.mean(tracking_errors(x_all[-n_term:], REF), axis=0)
 
 
-@pytest.mark.parametrize("iy, ix", [(1, 1), (0, 2), (2, 0)])
+@pytest.mark.parametrize(
+    "iy, ix", [(1, 1), pytest.param(0, 2, marks=pytest.mark.slow), pytest.param(2, 0, marks=pytest.mark.slow)]
+)
 def test_map_point_equals_single_closed_loop_run(env3x3, iy, ix):
     """The vmapped, chunked map gives at (iy, ix) what one closed-loop run from that state gives."""
     grid, inputs, emap, _, _ = env3x3

@@ -88,6 +88,7 @@ def test_plant_step_keeps_its_loops_on_cpu() -> None:
     assert hlo.count(" while(") >= 4  # the four stages' arctan2 pairs
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(jax.default_backend() != "cpu", reason="a layout of XLA's CPU backend")
 def test_vmapped_plant_step_adds_stages_without_transposes() -> None:
     """The stages' inputs are formed in the derivatives' layout: transposes only where the step's result
@@ -99,6 +100,7 @@ def test_vmapped_plant_step_adds_stages_without_transposes() -> None:
     assert hlo.count(" transpose(") <= 4
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(jax.default_backend() != "cpu", reason="the loops exist on the CPU only")
 def test_sharded_plant_step_needs_no_collectives() -> None:
     """Over two host devices, the loops' trip count is a constant: no all-reduce per loop."""

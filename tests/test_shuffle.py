@@ -18,6 +18,7 @@ def test_equals_jax_permutation(n: int, seed: int) -> None:
     np.testing.assert_array_equal(got, expected)
 
 
+@pytest.mark.slow
 def test_three_rounds_and_raw_keys() -> None:
     n = 2_700_000  # above 2.6M elements jax sorts three times
     assert [num_rounds(m) for m in (1, 1000, 32768, n)] == [0, 1, 2, 3]
