@@ -58,13 +58,11 @@ def _random_steps(n, seed=0):
 def test_paper_reward_bit_for_bit():
     """At the paper's parameters the total equals the paper-only formula exactly (float32, jitted)."""
     x, target, a, pot, term, a_prev = _random_steps(4096)
-    ours = jax.jit(jax.vmap(lambda *z: reward.reward_terms(*z[:5], W, z[5])[0].total))(
-        x, target, a, pot, term, a_prev
-    )
+    ours = jax.jit(jax.vmap(lambda *z: reward.reward_terms(*z, W)[0].total))(x, target, a, pot, term)
     ref = jax.jit(jax.vmap(lambda *z: _paper_total(*z, W)))(x, target, a, pot, term)
     assert np.asarray(ours).tobytes() == np.asarray(ref).tobytes()
-    for name in ("dense_alpha", "dense_beta", "dense_mu", "recovered", "action_rate"):
-        terms = jax.vmap(lambda *z: reward.reward_terms(*z[:5], W, z[5])[0])(x, target, a, pot, term, a_prev)
+    for name in ("dense_alpha", "dense_beta", "dense_mu", "recovered"):
+        terms = jax.vmap(lambda *z: reward.reward_terms(*z[:5], W)[0])(x, target, a, pot, term)
         assert np.all(np.asarray(getattr(terms, name)) == 0.0), name
 
 
@@ -129,22 +127,14 @@ def test_recovered_term_by_hand():
     )
 
 
-def test_action_rate_by_hand():
-    # a - a_prev = [0.5, -1, 0]: sum of squares 1.25; weight 0.2 -> -0.25
-    w = W.replace(action_rate_weight=jnp.asarray(0.2))
-    r = reward.action_rate_penalty(jnp.asarray([0.5, 0.0, 1.0]), jnp.asarray([0.0, 1.0, 1.0]), w)
-    np.testing.assert_allclose(r, -0.25, rtol=1e-6)
-
-
 def test_total_adds_our_terms():
     x, target, a, pot, term, a_prev = _random_steps(512, seed=1)
     w = W.replace(bonus_shape=jnp.asarray(1.0), bonus_width_rad=jnp.full((3,), 0.0873),
                   w_track=jnp.asarray([1.0, 2.0, 3.0]), recovered_bonus=jnp.asarray(5.0),
-                  action_rate_weight=jnp.asarray(0.3),
                   alpha_v_lo_fps=jnp.asarray(450.0), alpha_v_hi_fps=jnp.asarray(600.0))  # fmt: skip
-    t = jax.vmap(lambda *z: reward.reward_terms(*z[:5], w, z[5])[0])(x, target, a, pot, term, a_prev)
+    t = jax.vmap(lambda *z: reward.reward_terms(*z, w)[0])(x, target, a, pot, term)
     perf = (t.raw + t.bonus_alpha + t.bonus_beta + t.bonus_mu + t.action + t.dense_alpha + t.dense_beta
-            + t.dense_mu + t.recovered + t.action_rate)  # fmt: skip
+            + t.dense_mu + t.recovered)  # fmt: skip
     expect = np.where(np.asarray(term), np.asarray(t.terminal), np.asarray(perf)) + np.asarray(t.shaping)
     np.testing.assert_allclose(t.total, expect, rtol=1e-5, atol=1e-4)
 

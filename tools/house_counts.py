@@ -77,8 +77,15 @@ def preset_keys() -> dict[str, list[str]]:
     keys["ppo"] = _dataclass_fields(_parse("harv_jax/ppo/config.py"), "PPOConfig")
     settings = _parse("harv_jax/env/settings.py")
     env = _dict_keys(settings, "ENV_RANGES")
-    loop = (ROOT / "harv_jax/training/in_loop.py").read_text()
-    wrappers = ["loop", "teacher", "teacher_model"] if "teacher_model" in loop else ["loop", "teacher"]
+    wrappers = ["loop", "teacher"]
+    for key, rel in (
+        ("teacher_model", "harv_jax/training/teacher.py"),
+        ("measurement_path", "harv_jax/training/measured_env.py"),
+        ("critic", "harv_jax/training/measured_env.py"),
+    ):
+        source = ROOT / rel
+        if source.exists() and f'"{key}"' in source.read_text():
+            wrappers.append(key)
     ttg = ROOT / "harv_jax/training/time_to_go.py"
     if ttg.exists():
         for node in ast.walk(ast.parse(ttg.read_text())):

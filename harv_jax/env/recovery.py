@@ -79,7 +79,6 @@ from harv_jax.task.spaces import (
     OBSERVATION_SIZE,
     action_to_command,
     clean_observation,
-    command_to_action,
     finish_observation,
 )
 from harv_jax.task.turbulent_criterion import TurbulentCriterion, filter_step, inside_bands, margins
@@ -301,7 +300,6 @@ def make_env(config: EnvConfig | None = None) -> Env:
         terminated = flags.any
         t = state.step + 1
         truncated = (t >= config.episode_steps) & ~terminated
-        a_prev = command_to_action(state.disturbance.cmd_buffer_rad[0], ac.u_min_rad, ac.u_max_rad)
         filtered, inside = None, None
         if turbulence:  # the recovered reward judged as the Monte Carlo judges a run in turbulence
             crit = TurbulentCriterion(ep.turbulence)
@@ -311,7 +309,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
             margin = margins(crit, h_ft(x), vt_fps(x)).astype(x.dtype)
             inside = inside_bands(filtered, params.reward.recovered_tol, margin)
         terms, pot_next = reward.reward_terms(
-            x, state.target_rad, a, state.potential, terminated, params.reward, a_prev, inside
+            x, state.target_rad, a, state.potential, terminated, params.reward, inside
         )
         obs = _observe(dist, x, state.target_rad, ep)
         new_state = state.replace(

@@ -25,7 +25,6 @@ paper's bit for bit, ``tests/test_reward.py``):
     bonus_i     = bonus_i exp(-(e_i / w_i)^2)            when bonus_shape = 1 (smooth bands)
     dense_i     = -w_track_i min(|e_i| / track_clip_i, 1)   (clipped L1 per channel, Dally & van Kampen)
     recovered   = +recovered_bonus [all of |e_alpha|, |e_beta|, |e_mu|, ||omega|| below recovered_tol]
-    action_rate = -action_rate_weight sum_i (a_i - a_prev_i)^2
     r_raw       = raw_weight ((1 - eps) r_phase1 + eps r_phase2)     (paper: raw_weight = 1)
     w_mu(gamma) = 1 - smoothstep((|gamma| - mu_gamma_lo) / (mu_gamma_hi - mu_gamma_lo)) multiplies the mu
                   bonus and dense_mu (paper: 1 at every gamma)
@@ -34,7 +33,7 @@ paper's bit for bit, ``tests/test_reward.py``):
                   dense_alpha are paid on alpha - (w_alpha alpha_d + (1 - w_alpha) alpha_brake), and with a
                   zoom bound on alpha - (alpha_d + (1 - w_alpha) w_zoom (alpha_brake - alpha_d)), w_zoom = 0
                   above V = alpha_brake_v_zoom - alpha_brake_zoom_slope max(gamma, 0) (not braked in a zoom)
-    reward      = paper reward + dense + recovered + action_rate   (non-terminal step)
+    reward      = paper reward + dense + recovered                 (non-terminal step)
     reward   = terminal_reward + (Gamma * 0 - sigma_t)                 (terminating step)
 
 The paper lists the bonuses and the action penalty as "Additional Reward" next to the blended phases, so
@@ -82,7 +81,6 @@ class RewardTerms(NamedTuple):
     dense_beta: jnp.ndarray
     dense_mu: jnp.ndarray
     recovered: jnp.ndarray
-    action_rate: jnp.ndarray
     total: jnp.ndarray
 
 
@@ -169,12 +167,6 @@ def recovered_term(errors_rad: jnp.ndarray, pqr_radps: jnp.ndarray, params: Rewa
     return jnp.where(inside, params.recovered_bonus, jnp.zeros_like(params.recovered_bonus))
 
 
-def action_rate_penalty(action: jnp.ndarray, action_prev: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
-    """-action_rate_weight * sum_i (a_i - a_prev_i)^2 of the normalized actions [3]."""
-    d = action - action_prev
-    return -params.action_rate_weight * jnp.sum(d * d, axis=-1)
-
-
 def action_penalty(action: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
     """-action_weight * sum_i a_i^2 of the normalized action [3]."""
     return -params.action_weight * jnp.sum(action * action, axis=-1)
@@ -202,7 +194,6 @@ def reward_terms(
     potential_prev: jnp.ndarray,
     terminated: jnp.ndarray,
     params: RewardParams,
-    action_prev: jnp.ndarray | None = None,
     recovered_inside: jnp.ndarray | None = None,
 ) -> tuple[RewardTerms, jnp.ndarray]:
     """All reward terms of one step and the potential of the new state.
@@ -214,7 +205,6 @@ def reward_terms(
         potential_prev: sigma_t of the state the step started from.
         terminated: bool, the step left the envelope (s_{t+1} is absorbing, sigma = 0).
         params: reward weights.
-        action_prev: [3] normalized action of the previous step (default: ``action``, no rate penalty).
         recovered_inside: whether the state counts as recovered for the recovered bonus (the env in
             turbulence: the criterion in turbulence's filtered bands, ``task.turbulent_criterion``);
             default: every error and the rate norm below ``recovered_tol``.
@@ -249,11 +239,10 @@ def reward_terms(
         r_recovered = jnp.where(
             recovered_inside, params.recovered_bonus, jnp.zeros_like(params.recovered_bonus)
         )
-    r_rate = action_rate_penalty(action, action if action_prev is None else action_prev, params)
     zero = jnp.zeros_like(r_raw)
     r_terminal = jnp.where(terminated, params.terminal_reward, zero)
     # the paper's sum first, our terms added after it: zero weights leave it bit for bit
-    performance = (r_raw + jnp.sum(bonus) + r_action) + (jnp.sum(dense) + r_recovered + r_rate)
+    performance = (r_raw + jnp.sum(bonus) + r_action) + (jnp.sum(dense) + r_recovered)
     total = jnp.where(terminated, r_terminal, performance) + r_shaping
     # the performance terms, paid only on a non-terminating step (reported as 0 on a terminating one)
     paid = {
@@ -269,7 +258,6 @@ def reward_terms(
         "dense_beta": dense[1],
         "dense_mu": dense[2],
         "recovered": r_recovered,
-        "action_rate": r_rate,
     }
     terms = RewardTerms(
         **{k: jnp.where(terminated, zero, v) for k, v in paid.items()},

@@ -67,9 +67,6 @@ class RewardParams:
         10.0,
         "tolerances of that criterion: |e_alpha|, |e_beta|, |e_mu| (rad), ||omega|| (rad/s)",
     )
-    action_rate_weight: jnp.ndarray = _field(
-        0.0, 0.0, 1000.0, "weight of -sum_i (a_i - a_prev_i)^2 on the normalized action"
-    )
     raw_weight: jnp.ndarray = _field(
         1.0,
         0.0,

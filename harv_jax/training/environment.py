@@ -36,7 +36,7 @@ def make_harv_env(
     if spec.loop != "none":
         env = make_in_loop_env(env, spec.loop.removeprefix("hybrid:"))
     if spec.teacher is not None:
-        env = make_teacher_env(env, build_controller(spec.teacher), spec.teacher, spec.teacher_model)
+        env = make_teacher_env(env, build_controller(spec.teacher), spec.teacher)
     if spec.path is not None:  # the policy observes through its measurement path; the teacher the true state
         env = make_measured_env(env, spec.path, privileged_critic=spec.critic == "privileged")
     return env, spec.env.params(spin_bank)

@@ -104,27 +104,22 @@ class InLoopEnv(NamedTuple):
     action_size: int
 
 
-def controller_at_reset(controller: Any, es: EnvState, model: Any = None) -> Any:
-    """A controller's state at an episode's start: built on ``model`` (an ``AircraftParams``; None: the
-    episode's aircraft), its memory of the last command (if it keeps one) at the episode's initial
-    deflections (e.g. a spin reset's pro-spin controls)."""
-    ctrl = controller.init(es.episode.aircraft if model is None else model)
+def controller_at_reset(controller: Any, es: EnvState) -> Any:
+    """A controller's state at an episode's start: built on the episode's aircraft, its memory of the last
+    command (if it keeps one) at the episode's initial deflections (e.g. a spin reset's pro-spin controls)."""
+    ctrl = controller.init(es.episode.aircraft)
     if hasattr(ctrl, "u_prev_rad"):
         ctrl = ctrl.replace(u_prev_rad=es.delta_rad.astype(ctrl.u_prev_rad.dtype))
     return ctrl
 
 
-def wrapped_env_functions(
-    env: Env, controller: Any, step_no_reset: Any, nominal_model: bool = False
-) -> tuple[Any, Any, Any, Any]:
+def wrapped_env_functions(env: Env, controller: Any, step_no_reset: Any) -> tuple[Any, Any, Any, Any]:
     """(reset, reset_to, step, batch_step) of an env whose states are ``InLoopState`` (``env``'s state plus
-    ``controller``'s, started by [`controller_at_reset`][] on the episode's aircraft, or with
-    ``nominal_model`` on the env parameters' nominal one), given its ``step_no_reset``; ``step`` auto-resets
-    as the plain env's does."""
+    ``controller``'s, started by [`controller_at_reset`][] on the episode's aircraft), given its
+    ``step_no_reset``; ``step`` auto-resets as the plain env's does."""
 
     def _wrap(obs: jnp.ndarray, es: EnvState, params: Any) -> tuple[jnp.ndarray, InLoopState]:
-        model = params.aircraft if nominal_model else None
-        return obs, InLoopState(env=es, ctrl=controller_at_reset(controller, es, model))
+        return obs, InLoopState(env=es, ctrl=controller_at_reset(controller, es))
 
     def reset(key: jax.Array, params: Any) -> tuple[jnp.ndarray, InLoopState]:
         return _wrap(*env.reset(key, params), params)

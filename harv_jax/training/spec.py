@@ -5,7 +5,7 @@ hook, the outputs); its cross-field rules are checked here, once, when it is mad
 
 - behaviour cloning (``bc_coef`` or ``bc_coef_end`` > 0) needs a teacher or demonstrations, and
   demonstrations are cloned only with it;
-- a teacher cannot be combined with a controller in the loop, and ``teacher_model`` needs a teacher;
+- a teacher cannot be combined with a controller in the loop;
 - a privileged critic needs a measurement path;
 - ``--target-recovery`` is in (0, 1].
 
@@ -29,9 +29,9 @@ from harv_jax.ppo.config import PPOConfig
 from harv_jax.task.measurement_path import MeasurementPath
 from harv_jax.training.in_loop import LOOP_KEY, parse_loop
 from harv_jax.training.measured_env import CRITIC_KEY, CRITICS, MEASUREMENT_PATH_KEY
-from harv_jax.training.teacher import TEACHER_KEY, TEACHER_MODEL_KEY, TEACHER_MODELS
+from harv_jax.training.teacher import TEACHER_KEY
 
-WRAPPER_KEYS = (LOOP_KEY, TEACHER_KEY, TEACHER_MODEL_KEY, MEASUREMENT_PATH_KEY, CRITIC_KEY)
+WRAPPER_KEYS = (LOOP_KEY, TEACHER_KEY, MEASUREMENT_PATH_KEY, CRITIC_KEY)
 
 
 def check_measurement_path(text: Any, loop: str) -> None:
@@ -57,9 +57,9 @@ def check_critic(critic: Any, measurement_path: Any) -> None:
         )
 
 
-def check_wrappers(loop: str, teacher: Any, teacher_model: Any, teacher_model_set: bool = True) -> None:
+def check_wrappers(loop: str, teacher: Any) -> None:
     """The rules of the wrapper keys: a teacher is a model-based registry controller and excludes a
-    controller in the loop; ``teacher_model`` is ``episode`` or ``nominal`` and needs a teacher."""
+    controller in the loop."""
     if teacher is not None:
         teachers = [n for n in controller_names() if not uses_option([n], "policy")]  # model-based
         if not isinstance(teacher, str) or teacher not in teachers:
@@ -69,12 +69,6 @@ def check_wrappers(loop: str, teacher: Any, teacher_model: Any, teacher_model_se
             )
         if loop != "none":
             raise UsageError(f"[env] teacher {teacher!r} cannot be combined with --in-loop; drop one of them")
-    if teacher_model not in TEACHER_MODELS:
-        raise UsageError(f"[env] teacher_model {teacher_model!r}; allowed: {', '.join(TEACHER_MODELS)}")
-    if teacher_model_set and teacher is None:
-        raise UsageError(
-            f"[env] teacher_model {teacher_model!r} given without a teacher; set [env] teacher too"
-        )
 
 
 def check_env_table(env_table: Any) -> EnvSettings:
@@ -83,12 +77,7 @@ def check_env_table(env_table: Any) -> EnvSettings:
     if not isinstance(env_table, dict):
         raise UsageError(f"[env] must be a table of settings, got {env_table!r}")
     env = EnvSettings.from_table({k: v for k, v in env_table.items() if k not in WRAPPER_KEYS})
-    check_wrappers(
-        parse_loop(env_table.get(LOOP_KEY, "none")),
-        env_table.get(TEACHER_KEY),
-        env_table.get(TEACHER_MODEL_KEY, "episode"),
-        TEACHER_MODEL_KEY in env_table,
-    )
+    check_wrappers(parse_loop(env_table.get(LOOP_KEY, "none")), env_table.get(TEACHER_KEY))
     check_measurement_path(
         env_table.get(MEASUREMENT_PATH_KEY, "none"), parse_loop(env_table.get(LOOP_KEY, "none"))
     )
@@ -106,11 +95,9 @@ class TrainSpec:
         env: the env settings (``[env]`` fields, ``[reward]``, ``[randomization]``, ``[spin]``, ``[eval]``).
         loop: ``none`` or ``hybrid:<schedule>``: a controller in the env step (``--in-loop``).
         teacher: a model-based registry controller that labels every state (``[env] teacher``), or None.
-        teacher_model: the teacher's model aircraft, ``episode`` or ``nominal`` (``[env] teacher_model``).
         init_policy: the policy every seed starts from (``--init-policy``), or None.
         target_recovery: stop once every seed recovers this fraction of the ``[eval]`` batch, or None.
         demos_sha256: the SHA-256 the demonstrations file must have (a resumed run's), or None.
-        teacher_model_set: whether ``teacher_model`` was given (it is recorded only then).
         measurement_path: ``none`` or the path the policy observes through (``[env] measurement_path``:
             ``lpHZ``, ``obsHZ``, ``esoHZ``; ``harv_jax.training.measured_env``).
         critic: what the critic observes, ``actor`` (the policy's observation) or ``privileged`` (the true
@@ -122,16 +109,14 @@ class TrainSpec:
     env: EnvSettings
     loop: str = "none"
     teacher: str | None = None
-    teacher_model: str = "episode"
     init_policy: str | None = None
     target_recovery: float | None = None
     demos_sha256: str | None = None
-    teacher_model_set: bool = False
     measurement_path: str = "none"
     critic: str = "actor"
 
     def __post_init__(self) -> None:
-        check_wrappers(self.loop, self.teacher, self.teacher_model, self.teacher_model_set)
+        check_wrappers(self.loop, self.teacher)
         check_measurement_path(self.measurement_path, self.loop)
         check_critic(self.critic, self.measurement_path)
         cfg = self.ppo
@@ -169,7 +154,7 @@ class TrainSpec:
         demos_sha256: str | None = None,
     ) -> TrainSpec:
         """The spec of a PPO config and an env settings dict that may hold the wrapper keys (``loop``,
-        ``teacher``, ``teacher_model``), as a preset's ``[env]`` table or a run's record does."""
+        ``teacher``), as a preset's ``[env]`` table or a run's record does."""
         if not isinstance(env_table, dict):
             raise UsageError(f"[env] must be a table of settings, got {env_table!r}")
         env = EnvSettings.from_table({k: v for k, v in env_table.items() if k not in WRAPPER_KEYS})
@@ -181,11 +166,9 @@ class TrainSpec:
             env=env,
             loop=parse_loop(env_table.get(LOOP_KEY, "none")),
             teacher=env_table.get(TEACHER_KEY),
-            teacher_model=env_table.get(TEACHER_MODEL_KEY, "episode"),
             init_policy=init_policy,
             target_recovery=target_recovery,
             demos_sha256=demos_sha256,
-            teacher_model_set=TEACHER_MODEL_KEY in env_table,
             measurement_path=env_table.get(MEASUREMENT_PATH_KEY, "none"),
             critic=env_table.get(CRITIC_KEY, "actor"),
         )
@@ -198,8 +181,6 @@ class TrainSpec:
             out[LOOP_KEY] = self.loop
         if self.teacher is not None:
             out[TEACHER_KEY] = self.teacher
-        if self.teacher_model_set:
-            out[TEACHER_MODEL_KEY] = self.teacher_model
         if self.measurement_path != "none":
             out[MEASUREMENT_PATH_KEY] = self.measurement_path
         if self.critic != "actor":

@@ -6,12 +6,10 @@ e.g. the braking SMC ``smc-brake``) commands at the state the policy acts in. Th
 flies; the teacher only labels, on the states the learner visits (DAgger, Ross et al. 2011). The trainer
 turns the labels into a behaviour-cloning term of the PPO loss (``PPOConfig.bc_coef``, DAPG, Rajeswaran et
 al. 2017). The teacher's own state (e.g. the SMC's integral and its memory of the last command) runs on the
-flown trajectory and starts at the episode's initial deflections; its model aircraft is the episode's
-(``[env] teacher_model = "episode"``, the default: a teacher that knows the randomized aircraft the policy
-does not observe) or the nominal one (``"nominal"``: its labels are a function of the flown states alone, as
-a model-based controller built on the nominal aircraft flies in ``harv-jax mc --randomize``).
+flown trajectory and starts at the episode's initial deflections; its model aircraft is the episode's (a
+privileged teacher: it knows the randomized aircraft the policy does not observe).
 
-In a preset: ``[env] teacher = "smc-brake"``, optionally ``teacher_model = "nominal"``.
+In a preset: ``[env] teacher = "smc-brake"``.
 """
 
 from __future__ import annotations
@@ -31,10 +29,6 @@ TEACHER_KEY = "teacher"
 #: The key of each step's ``info`` that holds the teacher's normalized action [3] (the labels the behaviour
 #: cloning term of ``harv_jax.ppo.loss_terms`` reads).
 TEACHER_ACTION_KEY = "teacher_action"
-#: Key of the teacher's model aircraft in a run's env settings (absent: ``"episode"``).
-TEACHER_MODEL_KEY = "teacher_model"
-#: Allowed teacher models: the episode's (randomized) aircraft, or the nominal one.
-TEACHER_MODELS = ("episode", "nominal")
 
 
 class TeacherEnv(NamedTuple):
@@ -52,14 +46,13 @@ class TeacherEnv(NamedTuple):
     action_size: int
 
 
-def make_teacher_env(env: Env, teacher: Controller, name: str, model: str = "episode") -> TeacherEnv:
+def make_teacher_env(env: Env, teacher: Controller, name: str) -> TeacherEnv:
     """Wrap ``env`` so that every step's info carries ``teacher``'s normalized action (``teacher_action``).
 
     Args:
         env: the plain recovery env.
         teacher: the teacher controller (``Controller(init, apply)``).
         name: its registry name (recorded as ``TeacherEnv.teacher``).
-        model: the teacher's model aircraft, ``"episode"`` (the randomized one) or ``"nominal"``.
     """
 
     def step_no_reset(key: jax.Array, state: InLoopState, action: jnp.ndarray, params: Any):
@@ -72,9 +65,7 @@ def make_teacher_env(env: Env, teacher: Controller, name: str, model: str = "epi
         info[TEACHER_ACTION_KEY] = a_teacher.astype(jnp.float32)
         return obs, InLoopState(env=es_new, ctrl=ctrl), reward, terminated, truncated, info
 
-    if model not in TEACHER_MODELS:
-        raise ValueError(f"teacher model {model!r}; allowed: {', '.join(TEACHER_MODELS)}")
-    reset, reset_to, step, batch_step = wrapped_env_functions(env, teacher, step_no_reset, model == "nominal")
+    reset, reset_to, step, batch_step = wrapped_env_functions(env, teacher, step_no_reset)
     return TeacherEnv(
         config=env.config,
         reset=reset,
