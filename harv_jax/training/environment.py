@@ -8,15 +8,16 @@ from typing import Any
 from harv_jax.control.registry import build_controller
 from harv_jax.env import Env, EnvParams, make_env
 from harv_jax.ppo.config import PPOConfig
-from harv_jax.training.in_loop import InLoopEnv, make_in_loop_env
-from harv_jax.training.measured_env import MeasuredEnv, make_measured_env
+from harv_jax.training.in_loop import make_in_loop_env
+from harv_jax.training.measured_env import make_measured_env
 from harv_jax.training.spec import TrainSpec
-from harv_jax.training.teacher import TeacherEnv, make_teacher_env
+from harv_jax.training.teacher import make_teacher_env
+from harv_jax.training.wrapped_env import WrappedEnv
 
 
 def make_harv_env(
     spec: TrainSpec | dict[str, Any], spin_bank: Any = None
-) -> tuple[Env | InLoopEnv | TeacherEnv | MeasuredEnv, EnvParams]:
+) -> tuple[Env | WrappedEnv, EnvParams]:
     """(env, env_params) of a run: the recovery env of ``spec.env``, with the hybrid law inside its step
     (``spec.loop``: ``harv_jax.training.in_loop``) or a teacher whose action labels every step
     (``spec.teacher``: ``harv_jax.training.teacher``), the policy's observation through its measurement

@@ -17,7 +17,7 @@ acted unmodified and the supervisor's fallback flag.
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -29,6 +29,7 @@ from harv_jax.env import Env, EnvState
 from harv_jax.env.auto_reset import with_auto_reset
 from harv_jax.errors import UsageError
 from harv_jax.task.spaces import command_to_action
+from harv_jax.training.wrapped_env import WrappedEnv, wrap
 
 #: Loops a policy can be trained in: ``none`` (the plain env) or ``hybrid:<schedule>``.
 LOOPS: tuple[str, ...] = ("none",) + tuple(f"hybrid:{s}" for s in ZETA_SCHEDULES)
@@ -89,21 +90,6 @@ class InLoopState:
         return InLoopState(env, ctrl)
 
 
-class InLoopEnv(NamedTuple):
-    """Same interface as ``harv_jax.env.recovery.Env`` (see there); states are ``InLoopState``."""
-
-    config: Any
-    reset: Any
-    step: Any
-    step_no_reset: Any
-    default_params: Any
-    reset_to: Any
-    batch_step: Any
-    loop: str
-    observation_size: int
-    action_size: int
-
-
 def controller_at_reset(controller: Any, es: EnvState) -> Any:
     """A controller's state at an episode's start: built on the episode's aircraft, its memory of the last
     command (if it keeps one) at the episode's initial deflections (e.g. a spin reset's pro-spin controls)."""
@@ -135,7 +121,7 @@ def wrapped_env_functions(env: Env, controller: Any, step_no_reset: Any) -> tupl
     return reset, reset_to, step, batch_step
 
 
-def make_in_loop_env(env: Env, schedule: str = "gated", gains: HybridGains | None = None) -> InLoopEnv:
+def make_in_loop_env(env: Env, schedule: str = "gated", gains: HybridGains | None = None) -> WrappedEnv:
     """Wrap ``env`` so that its actions are the hybrid's u_RL under ``schedule`` (a ``ZETA_SCHEDULES`` name).
 
     Args:
@@ -164,15 +150,4 @@ def make_in_loop_env(env: Env, schedule: str = "gated", gains: HybridGains | Non
 
     # the hybrid's state does not depend on the action its policy returns: any stands in at a reset
     reset, reset_to, step, batch_step = wrapped_env_functions(env, _hybrid(jnp.zeros((3,))), step_no_reset)
-    return InLoopEnv(
-        config=env.config,
-        reset=reset,
-        step=step,
-        step_no_reset=step_no_reset,
-        default_params=env.default_params,
-        reset_to=reset_to,
-        batch_step=batch_step,
-        loop=f"hybrid:{schedule}",
-        observation_size=env.observation_size,
-        action_size=env.action_size,
-    )
+    return wrap(env, reset, step, step_no_reset, reset_to, batch_step, loop=f"hybrid:{schedule}")

@@ -19,7 +19,7 @@ policy, and so what is saved and flown, is the same network either way.
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -31,6 +31,7 @@ from harv_jax.env.auto_reset import with_auto_reset
 from harv_jax.task.measurement_path import MeasurementPath, path_record
 from harv_jax.task.spaces import action_to_command, clean_observation, finish_observation
 from harv_jax.training.in_loop import InLoopState
+from harv_jax.training.wrapped_env import WrappedEnv, wrap
 
 #: Key of the measurement path in a run's env settings (absent: none).
 MEASUREMENT_PATH_KEY = "measurement_path"
@@ -40,22 +41,6 @@ SEEN_KEY = "x_seen"
 CRITIC_KEY = "critic"
 #: What the critic may observe: the policy's observation, or the true state (asymmetric actor-critic).
 CRITICS = ("actor", "privileged")
-
-
-class MeasuredEnv(NamedTuple):
-    """Same interface as ``harv_jax.env.recovery.Env``; states are ``InLoopState`` (inner env + path)."""
-
-    config: Any
-    reset: Any
-    step: Any
-    step_no_reset: Any
-    default_params: Any
-    reset_to: Any
-    batch_step: Any
-    measurement_path: dict[str, Any]
-    observation_size: int
-    action_size: int
-    critic_observation: Any = None  # state -> [O] the true state's observation (privileged critic) or None
 
 
 def _capture() -> Controller:
@@ -83,7 +68,7 @@ def true_observation(state: Any) -> jnp.ndarray:
     return finish_observation(clean_observation(es.wind, es.target_rad))
 
 
-def make_measured_env(env: Any, path: MeasurementPath, privileged_critic: bool = False) -> MeasuredEnv:
+def make_measured_env(env: Any, path: MeasurementPath, privileged_critic: bool = False) -> WrappedEnv:
     """Wrap ``env`` (the plain env or a teacher wrapper) so that the policy observes through ``path``; with
     ``privileged_critic`` the env offers the critic the true state's observation ([`true_observation`][])."""
     path_ctrl = with_measurement_path(_capture(), path)
@@ -124,16 +109,13 @@ def make_measured_env(env: Any, path: MeasurementPath, privileged_critic: bool =
     def batch_step(keys: jax.Array, states: InLoopState, actions: jnp.ndarray, params: Any):
         return jax.vmap(step, in_axes=(0, 0, 0, None))(keys, states, actions, params)
 
-    return MeasuredEnv(
-        config=env.config,
-        reset=reset,
-        step=step,
-        step_no_reset=step_no_reset,
-        default_params=env.default_params,
-        reset_to=reset_to,
-        batch_step=batch_step,
+    return wrap(
+        env,
+        reset,
+        step,
+        step_no_reset,
+        reset_to,
+        batch_step,
         measurement_path=path_record(path),
-        observation_size=env.observation_size,
-        action_size=env.action_size,
         critic_observation=critic,
     )

@@ -14,7 +14,7 @@ In a preset: ``[env] teacher = "smc-brake"``.
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -23,6 +23,7 @@ from harv_jax.control.base import Controller
 from harv_jax.env import Env
 from harv_jax.task.spaces import command_to_action
 from harv_jax.training.in_loop import InLoopState, wrapped_env_functions
+from harv_jax.training.wrapped_env import WrappedEnv, wrap
 
 #: Key of the teacher's controller name in a run's env settings (absent: no teacher).
 TEACHER_KEY = "teacher"
@@ -31,28 +32,13 @@ TEACHER_KEY = "teacher"
 TEACHER_ACTION_KEY = "teacher_action"
 
 
-class TeacherEnv(NamedTuple):
-    """Same interface as ``harv_jax.env.recovery.Env``; states are ``InLoopState`` (env + teacher state)."""
-
-    config: Any
-    reset: Any
-    step: Any
-    step_no_reset: Any
-    default_params: Any
-    reset_to: Any
-    batch_step: Any
-    teacher: str
-    observation_size: int
-    action_size: int
-
-
-def make_teacher_env(env: Env, teacher: Controller, name: str) -> TeacherEnv:
+def make_teacher_env(env: Env, teacher: Controller, name: str) -> WrappedEnv:
     """Wrap ``env`` so that every step's info carries ``teacher``'s normalized action (``teacher_action``).
 
     Args:
         env: the plain recovery env.
         teacher: the teacher controller (``Controller(init, apply)``).
-        name: its registry name (recorded as ``TeacherEnv.teacher``).
+        name: its registry name (recorded as ``WrappedEnv.teacher``).
     """
 
     def step_no_reset(key: jax.Array, state: InLoopState, action: jnp.ndarray, params: Any):
@@ -66,15 +52,4 @@ def make_teacher_env(env: Env, teacher: Controller, name: str) -> TeacherEnv:
         return obs, InLoopState(env=es_new, ctrl=ctrl), reward, terminated, truncated, info
 
     reset, reset_to, step, batch_step = wrapped_env_functions(env, teacher, step_no_reset)
-    return TeacherEnv(
-        config=env.config,
-        reset=reset,
-        step=step,
-        step_no_reset=step_no_reset,
-        default_params=env.default_params,
-        reset_to=reset_to,
-        batch_step=batch_step,
-        teacher=name,
-        observation_size=env.observation_size,
-        action_size=env.action_size,
-    )
+    return wrap(env, reset, step, step_no_reset, reset_to, batch_step, teacher=name)
