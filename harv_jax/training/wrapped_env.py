@@ -33,7 +33,9 @@ class WrappedEnv(NamedTuple):
     critic_observation: Any = None  # state -> [O] the true state's observation (privileged critic) or None
 
 
-def wrap(env: Any, reset: Any, step: Any, step_no_reset: Any, reset_to: Any, batch_step: Any, **added: Any):
+def wrap(
+    env: Any, reset: Any, step: Any, step_no_reset: Any, reset_to: Any, batch_step: Any, **added: Any
+) -> WrappedEnv:
     """The record of a wrapper around ``env`` with these functions: ``env``'s config, parameters and sizes,
     what ``env``'s own wrappers added, and ``added`` (this wrapper's fields, among [`ADDED_FIELDS`][])."""
     unknown = set(added) - set(ADDED_FIELDS)
