@@ -148,8 +148,8 @@ def test_total_adds_our_terms():
         ({"reward": {"recovered_bonus": float("nan")}}, "reward.recovered_bonus"),
         ({"reward": {"bogus": 1}}, "unknown [reward] setting 'bogus'"),
         (
-            {"reward": {"alpha_brake_zoom_slope_fps_per_rad": -1.0}},
-            "reward.alpha_brake_zoom_slope_fps_per_rad = -1.0 is outside the allowed range [0, 10000]",
+            {"reward": {"alpha_brake_rad": 2.0}},
+            "reward.alpha_brake_rad = 2.0 is outside the allowed range [-0.5, 1.5]",
         ),
         ({"reward": {"alpha_v_hi_fps": 2e6}}, "reward.alpha_v_hi_fps = 2000000.0 is outside"),
         ({"spin": {"reset_prob": 1.5}}, "spin.reset_prob = 1.5 is outside the allowed range [0, 1]"),
@@ -241,37 +241,6 @@ def test_alpha_brake_target_by_hand():
     np.testing.assert_allclose(float(t.dense_alpha), 0.0, atol=1e-6)
     assert float(t.recovered) == 5.0
     assert float(step(700.0, 1.0).recovered) == 0.0  # on the braking ref but 37 deg off alpha_d
-
-
-def test_alpha_brake_zoom_bound_by_hand():
-    """alpha_brake_v_zoom_fps / alpha_brake_zoom_slope_fps_per_rad: the braking target only below
-    V = bound - slope max(gamma, 0), faded over the 50 ft/s below the bound; the default bound never acts."""
-    w = W.replace(w_track=jnp.asarray([4.0, 3.0, 3.0]), alpha_v_lo_fps=jnp.asarray(550.0),
-                  alpha_v_hi_fps=jnp.asarray(650.0), alpha_brake_on=jnp.asarray(1.0),
-                  alpha_brake_rad=jnp.asarray(1.0))  # fmt: skip
-    zoom = w.replace(alpha_brake_v_zoom_fps=jnp.asarray(1200.0),
-                     alpha_brake_zoom_slope_fps_per_rad=jnp.asarray(600.0))  # fmt: skip
-    target = jnp.asarray([0.349, 0.0, 0.0])
-
-    def dense_alpha(params, v, gamma, alpha):
-        x = jnp.zeros(10).at[0].set(v).at[1].set(alpha).at[7].set(gamma)
-        return float(
-            reward.reward_terms(x, target, jnp.zeros(3), jnp.asarray(0.0), False, params)[0].dense_alpha
-        )
-
-    # braking band, level: ref 1.0 rad; alpha 0.75 -> -4 * 0.25 / 0.5 = -2
-    np.testing.assert_allclose(dense_alpha(zoom, 700.0, 0.0, 0.75), -2.0, rtol=1e-5)
-    # above the bound 1200 (level) and above 1200 - 600 * 0.5 = 900 (climbing 0.5 rad): ref alpha_d
-    np.testing.assert_allclose(dense_alpha(zoom, 1300.0, 0.0, 0.599), -2.0, rtol=1e-4)
-    np.testing.assert_allclose(dense_alpha(zoom, 1000.0, 0.5, 0.349), 0.0, atol=1e-6)
-    # a dive does not raise the bound: V = 1100, gamma = -0.5 brakes
-    np.testing.assert_allclose(dense_alpha(zoom, 1100.0, -0.5, 0.75), -2.0, rtol=1e-5)
-    # halfway through the fade (V = 1175): ref 0.349 + 0.5 (1.0 - 0.349) = 0.6745; alpha 0.4245 -> -2
-    np.testing.assert_allclose(dense_alpha(zoom, 1175.0, 0.0, 0.4245), -2.0, rtol=1e-4)
-    # the default bound (1e6 ft/s): brakes at any airspeed and climb angle, exactly as without the fields
-    assert float(w.alpha_brake_v_zoom_fps) == 1e6 and float(w.alpha_brake_zoom_slope_fps_per_rad) == 0.0
-    assert float(reward.zoom_weight(jnp.asarray(1900.0), jnp.asarray(1.2), w)) == 1.0
-    np.testing.assert_allclose(dense_alpha(w, 1900.0, 1.2, 0.75), -2.0, rtol=1e-5)
 
 
 def test_cli_bad_reward_table_exit_2(monkeypatch, capsys, tmp_path):

@@ -30,9 +30,7 @@ paper's bit for bit, ``tests/test_reward.py``):
                   bonus and dense_mu (paper: 1 at every gamma)
     w_alpha(V)  = 1 - smoothstep((V - alpha_v_lo) / (alpha_v_hi - alpha_v_lo)) multiplies the alpha bonus and
                   dense_alpha (paper: 1 at every V); with alpha_brake_on = 1 instead the alpha bonus and
-                  dense_alpha are paid on alpha - (w_alpha alpha_d + (1 - w_alpha) alpha_brake), and with a
-                  zoom bound on alpha - (alpha_d + (1 - w_alpha) w_zoom (alpha_brake - alpha_d)), w_zoom = 0
-                  above V = alpha_brake_v_zoom - alpha_brake_zoom_slope max(gamma, 0) (not braked in a zoom)
+                  dense_alpha are paid on alpha - (w_alpha alpha_d + (1 - w_alpha) alpha_brake)
     reward      = paper reward + dense + recovered                 (non-terminal step)
     reward   = terminal_reward + (Gamma * 0 - sigma_t)                 (terminating step)
 
@@ -59,9 +57,6 @@ from harv_jax.dynamics.state import alpha_rad, gamma_rad, omega_radps, vt_fps
 from harv_jax.env.reward_params import RewardParams
 from harv_jax.smooth import smoothstep_falling
 from harv_jax.task.criteria import tracking_errors
-
-#: Width of the band below the zoom bound over which the braking target fades out, ft/s.
-ZOOM_BAND_FPS = 50.0
 
 
 class RewardTerms(NamedTuple):
@@ -145,15 +140,6 @@ def alpha_weight(v_fps: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
     return smoothstep_falling(v_fps, params.alpha_v_lo_fps, params.alpha_v_hi_fps)
 
 
-def zoom_weight(v_fps: jnp.ndarray, gamma_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
-    """Weight of the braking target: 1 below V = alpha_brake_v_zoom_fps - alpha_brake_zoom_slope_fps_per_rad
-    max(gamma, 0) (less ZOOM_BAND_FPS), 0 above it (exactly 1 at the default bound 1e6 ft/s)."""
-    bound = params.alpha_brake_v_zoom_fps - params.alpha_brake_zoom_slope_fps_per_rad * jnp.maximum(
-        gamma_rad, 0.0
-    )
-    return smoothstep_falling(v_fps, bound - ZOOM_BAND_FPS, bound)
-
-
 def dense_tracking(errors_rad: jnp.ndarray, params: RewardParams) -> jnp.ndarray:
     """[3] dense per-channel terms -w_track_i min(|e_i| / track_clip_i, 1)."""
     return -params.w_track * jnp.minimum(jnp.abs(errors_rad) / params.track_clip_rad, 1.0)
@@ -223,8 +209,7 @@ def reward_terms(
     w_mu = mu_weight(gamma_rad(x_wind), params)  # exactly 1 at the paper's settings: x * 1.0 == x
     w_alpha = alpha_weight(vt_fps(x_wind), params)  # exactly 1 at the paper's settings
     brake = params.alpha_brake_on > 0.5  # off (paper): the errors and weights are taken as they are
-    w_zoom = zoom_weight(vt_fps(x_wind), gamma_rad(x_wind), params)  # exactly 1 at the default bound
-    shift = (1.0 - w_alpha) * w_zoom * (target_rad[0] - params.alpha_brake_rad)
+    shift = (1.0 - w_alpha) * (target_rad[0] - params.alpha_brake_rad)
     track_errors = jnp.where(brake, errors.at[0].add(shift), errors)
     w_alpha = jnp.where(brake, jnp.ones_like(w_alpha), w_alpha)
     channel_w = jnp.stack([w_alpha, jnp.ones_like(w_mu), w_mu])

@@ -98,16 +98,6 @@ class RewardParams:
         "1: the alpha terms track w alpha_d + (1 - w) alpha_brake_rad instead (w the speed weight above)",
     )
     alpha_brake_rad: jnp.ndarray = _field(1.0, -0.5, 1.5, "the high-drag alpha tracked while fast, rad")
-    alpha_brake_v_zoom_fps: jnp.ndarray = _field(
-        1e6,
-        0.0,
-        1e6,
-        "with alpha_brake_on: alpha_brake only below V = this - alpha_brake_zoom_slope max(gamma, 0), ft/s "
-        "(smoothstep over 50 ft/s below it; 1e6: no bound): a zoom climb is not braked",
-    )
-    alpha_brake_zoom_slope_fps_per_rad: jnp.ndarray = _field(
-        0.0, 0.0, 1e4, "how much the climb angle lowers that bound, ft/s per rad"
-    )
 
 
 def reward_fields() -> tuple[dataclasses.Field, ...]:
