@@ -37,7 +37,7 @@ def wrap(
     env: Any, reset: Any, step: Any, step_no_reset: Any, reset_to: Any, batch_step: Any, **added: Any
 ) -> WrappedEnv:
     """The record of a wrapper around ``env`` with these functions: ``env``'s config, parameters and sizes,
-    what ``env``'s own wrappers added, and ``added`` (this wrapper's fields, among [`ADDED_FIELDS`][])."""
+    what ``env``'s own wrappers added, and ``added`` (this wrapper's fields, among ``ADDED_FIELDS``)."""
     unknown = set(added) - set(ADDED_FIELDS)
     if unknown:
         raise ValueError(f"wrapper fields {sorted(unknown)}; allowed: {', '.join(ADDED_FIELDS)}")
