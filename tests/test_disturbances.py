@@ -268,6 +268,7 @@ def test_filter_suffix_in_the_registry():
     assert ctrl.init(harv()).u_prev_rad.shape == (3,)
 
 
+@pytest.mark.slow
 def test_a_users_controller_flies_in_the_monte_carlo(tmp_path):
     """``monte_carlo`` takes name -> Controller: a user's own controller beside a registered one; runs.csv
     gets the disturbance levels as its last columns. Both fly the same probe: the second rollout's program

@@ -68,6 +68,7 @@ def test_zeta_one_flies_the_smc_whatever_the_policy():
     np.testing.assert_allclose(x[:, 0], x[:, 2], rtol=1e-5, atol=1e-5)
 
 
+@pytest.mark.slow
 def test_the_policy_acts_through_the_gate():
     """With ``gated`` the action changes the flight: the policy is in the loop."""
     _, (_, x, _) = _flight("gated")
