@@ -29,16 +29,16 @@ from harv_jax.control.registry import (
 )
 
 TEACHER = "smc-brake-lp2"
-V8 = (
-    (
+V8 = "\n".join(
+    [
         "description = \"robust_v8: the robust preset taught by the braking SMC behind the policy's 2 Hz "
-        f'low-pass ({TEACHER}); experiments/robust_policy/teacher_behind_path.py."\n'
-    )
-    + f'''base = "robust.toml"
-
-[env]
-teacher = "{TEACHER}"
-'''
+        f'low-pass ({TEACHER}); experiments/robust_policy/teacher_behind_path.py."',
+        'base = "robust.toml"',
+        "",
+        "[env]",
+        f'teacher = "{TEACHER}"',
+        "",
+    ]
 )
 
 

@@ -15,10 +15,10 @@ One step, for the wind state x and the reference y_ref:
 The ``simplex`` schedule (Simplex architecture; the default) lets the policy act alone (zeta = 0) and hands
 over to the SMC for good (zeta = 1, u_RL = 0) on the first step the state leaves a box the SMC is shown to
 recover from, the policy's command is non-finite, or, from a deadline on, a tracking error leaves a tube
-while the aircraft is not slow and calm (``zeta.simplex_step``; it replaces step 1's supervisor): the
+while the aircraft is not slow and calm (``hybrid.zeta.simplex_step``; it replaces step 1's supervisor): the
 policy's speed is kept where it recovers, and the SMC's recovery covers the rest. Its SMC flies with the
-softer ``zeta.simplex_fallback_gains`` (less control activity after the hand-over); every other schedule
-uses ``HybridGains.smc``.
+softer ``hybrid.zeta.simplex_fallback_gains`` (less control activity after the hand-over); every other
+schedule uses ``HybridGains.smc``.
 
 The ``gated`` schedule replaces 4-5 by ``harv_jax.control.hybrid.gate``: a zeta per channel, the least that
 keeps the reaching condition for the command that acts (clipped to this step's box), u = u_RL + A^-1 (zeta (.)
@@ -138,7 +138,7 @@ class HybridConfig:
 
     Attributes:
         schedule: zeta schedule: ``simplex`` (default, as the CLI: zeta = 0 until a monitor trips, then 1
-            for good: ``zeta.simplex_step``), ``continuous``, ``hysteresis`` (the paper's tube),
+            for good: ``hybrid.zeta.simplex_step``), ``continuous``, ``hysteresis`` (the paper's tube),
             ``gated`` (per channel, from the reaching condition: ``harv_jax.control.hybrid.gate``), ``always``
             (zeta = 1), ``never`` (zeta = 0, the filtered RL-only law).
         smc: SMCConfig of the feedback term.

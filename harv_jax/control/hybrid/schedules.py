@@ -4,7 +4,7 @@ A schedule acts twice in a hybrid step (``harv_jax.control.hybrid.law``):
 
 - ``watch``, before the feedback term: whether the SMC flies alone (fallback). Every schedule but
   ``simplex`` runs the supervisor (``control.hybrid.supervisor``; off when the config disables it);
-  ``simplex`` runs its own monitor (``zeta.simplex_step``) instead.
+  ``simplex`` runs its own monitor (``hybrid.zeta.simplex_step``) instead.
 - ``weigh``, after the feedback term: zeta per channel and the command before the safety filter
   (``hysteresis``, ``continuous``: ``control.hybrid.zeta``; ``gated``: ``control.hybrid.gate``; ``always``: 1;
   ``never`` and ``simplex``: 0). zeta = 1 in fallback.
