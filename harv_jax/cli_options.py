@@ -16,11 +16,19 @@ from typing import Any
 
 import typer
 
+from harv_jax.aircraft.registry import aircraft_names
 from harv_jax.control.hybrid.settings import DEFAULT_ZETA
-from harv_jax.control.registry import ControllerOptions, check_options_apply
+from harv_jax.control.registry import (
+    ControllerOptions,
+    check_options_apply,
+    controller_names,
+    loop_mismatches,
+    split_filter,
+)
 from harv_jax.errors import UsageError
+from harv_jax.evaluation.montecarlo.disturbances import parse_disturbances
 from harv_jax.task.disturbance_table import BY_NAME, LEVEL_NAMES
-from harv_jax.task.spec import ALPHA_MAX_RAD, ALPHA_MIN_RAD, RECOVERY_HOLD_S
+from harv_jax.task.spec import RECOVERY_HOLD_S
 
 POLICY_HELP = (
     "rl/hybrid policy: run folder, .npz, checkpoint\\[@seed], shipped:robust (default), shipped:teacher, "
@@ -114,34 +122,14 @@ def check_duration(duration: float) -> None:
         )
 
 
-def check_mc_options(runs: int, target_alpha: float, duration: float, chunk: int | None) -> None:
-    """One-line UsageErrors for out-of-range numeric flags of ``mc``, ``envelope`` and ``quickstart``."""
-    if not 1 <= runs <= MAX_RUNS:
-        raise UsageError(f"--runs {runs} must be in [1, {MAX_RUNS}]")
-    if not (math.isfinite(target_alpha) and ALPHA_MIN_RAD <= target_alpha <= ALPHA_MAX_RAD):
-        raise UsageError(
-            f"--target-alpha {target_alpha} rad is outside the envelope [{ALPHA_MIN_RAD}, {ALPHA_MAX_RAD}]"
-        )
-    check_duration(duration)
-    if chunk is not None and chunk < 1:
-        raise UsageError(f"--chunk {chunk} must be >= 1")
-
-
-def check_fly_options(
-    controller: str, switching: str | None, target_alpha: float, duration: float, spin_s: float
-) -> None:
-    """UsageError (one line naming the value and what is allowed) for a bad ``fly``/``compare`` option."""
-    from harv_jax.control.registry import controller_names, split_filter
-
+def check_fly_options(controller: str, switching: str | None, spin_s: float) -> None:
+    """UsageError (one line naming the value and what is allowed) for a bad ``fly``/``compare`` option
+    (their shared study options are checked by ``harv_jax.study_options.StudyOptions``)."""
     names = controller_names()
     if split_filter(controller)[0] not in names:
         raise UsageError(f"--controller {controller!r} is unknown; allowed: {', '.join(names)}")
     if switching is not None and switching not in SWITCHING:
         raise UsageError(f"--switching {switching!r} is unknown; allowed: {', '.join(SWITCHING)}")
-    lo, hi = ALPHA_MIN_RAD, ALPHA_MAX_RAD
-    if not (math.isfinite(target_alpha) and lo <= target_alpha <= hi):
-        raise UsageError(f"--target-alpha {target_alpha} rad is outside [{lo}, {hi}]")
-    check_duration(duration)
     if not (math.isfinite(spin_s) and 0 <= spin_s <= MAX_DURATION_S):
         raise UsageError(f"--spin-s {spin_s} must be in [0, {MAX_DURATION_S:g}] s")
 
@@ -149,8 +137,6 @@ def check_fly_options(
 def warn_loop_mismatch(names: Sequence[str], policy: str | None, zeta: str) -> None:
     """Print one warning line to stderr per controller that flies the policy in another loop than it was
     trained in (``harv_jax.control.registry.loop_mismatches``)."""
-    from harv_jax.control.registry import ControllerOptions, loop_mismatches
-
     for line in loop_mismatches(names, ControllerOptions(policy=policy, zeta=zeta)):
         typer.echo(f"harv-jax: warning: {line}", err=True)
 
@@ -225,10 +211,10 @@ def disturbance_options(command: Callable[..., Any]) -> Callable[..., Any]:
         )
         return command(**kwargs, disturbance_spec=spec)
 
-    return _with_options(command, wrapper, "disturbance_spec", added)
+    return with_options(command, wrapper, "disturbance_spec", added)
 
 
-def _with_options(
+def with_options(
     command: Callable[..., Any], wrapper: Callable[..., Any], replaced: str, added: list[inspect.Parameter]
 ) -> Callable[..., Any]:
     """``wrapper`` with the signature typer reads: ``command``'s parameters but ``replaced`` (the keyword the
@@ -253,8 +239,6 @@ def check_aircraft(name: str | None) -> str | None:
     allowed names otherwise."""
     if name is None:
         return None
-    from harv_jax.aircraft.registry import aircraft_names
-
     if name not in aircraft_names():
         raise UsageError(f"--aircraft {name!r} is unknown; allowed: {', '.join(aircraft_names())}")
     return name
@@ -276,7 +260,7 @@ def aircraft_option(command: Callable[..., Any]) -> Callable[..., Any]:
         name = check_aircraft(kwargs.pop("aircraft"))
         return command(**kwargs, aircraft_name=name)
 
-    return _with_options(command, wrapper, "aircraft_name", added)
+    return with_options(command, wrapper, "aircraft_name", added)
 
 
 def disturbance_spec_from_cli(
@@ -289,8 +273,6 @@ def disturbance_spec_from_cli(
 ):
     """The ``DisturbanceSpec`` of the disturbance options (UsageError naming a bad one); ``levels`` by
     option parameter (``noise_scale``, ``delay_ms``, ...: ``harv_jax.task.disturbance_table``)."""
-    from harv_jax.evaluation.montecarlo.disturbances import parse_disturbances
-
     unknown = sorted(set(levels) - {BY_NAME[n].parameter for n in LEVEL_NAMES})
     if unknown:
         raise ValueError(f"unknown level options {unknown}")

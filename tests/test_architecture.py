@@ -82,7 +82,7 @@ def test_layers_import_downward(package: str, forbidden: tuple[str, ...]) -> Non
 #: The layers, top to bottom (README "Layout"): a module imports only from its own layer or below.
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("harv_jax.cli", "harv_jax.commands"),
-    ("harv_jax.cli_options", "harv_jax.state_file"),
+    ("harv_jax.cli_options", "harv_jax.study_options", "harv_jax.state_file"),
     ("harv_jax.report",),
     ("harv_jax.training",),
     ("harv_jax.evaluation", "harv_jax.optimal"),

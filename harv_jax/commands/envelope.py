@@ -13,6 +13,7 @@ the default fixed states.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -20,17 +21,25 @@ import typer
 
 from harv_jax.cli_options import (
     aircraft_option,
-    chunk_option,
+    command_line,
+    controller_options,
     controllers_help,
     disturbance_options,
     force_option,
     policy_option,
-    real_number,
+    warn_loop_mismatch,
     whole_number,
     zeta_option,
 )
+from harv_jax.control.registry import build_controller, parse_controllers
+from harv_jax.dynamics.state import WIND_STATE_NAMES
 from harv_jax.errors import UsageError
-from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S, H0_FT
+from harv_jax.evaluation.envelope.grid import GRID_AXES, make_grid
+from harv_jax.evaluation.envelope.study import envelope_study, write_envelope
+from harv_jax.guards import check_closed_loop_batch
+from harv_jax.outdir import prepare_out_dir, read_paths
+from harv_jax.study_options import StudyOptions, study_options
+from harv_jax.task.spec import DT_S, H0_FT
 
 MAX_POINTS_PER_AXIS = 1000
 
@@ -50,8 +59,6 @@ def parse_grid(text: str) -> tuple[tuple[str, tuple[float, float] | None], ...]:
 
     Ranges are in state units (ft/s, rad, rad/s, ft). UsageError on a malformed text or unknown axis.
     """
-    from harv_jax.evaluation.envelope.grid import GRID_AXES
-
     parts = text.split(":")
     if len(parts) != 2:
         raise UsageError(f"--grid {text!r} must name two axes as X:Y (e.g. alpha0:r0, V0:alpha0)")
@@ -78,8 +85,6 @@ def parse_grid(text: str) -> tuple[tuple[str, tuple[float, float] | None], ...]:
 
 def parse_fixed(text: str) -> dict[str, float]:
     """``"V0=300,h0=20000"`` -> {"V": 300.0, "h": 20000.0} (state units); UsageError on bad input."""
-    from harv_jax.dynamics.state import WIND_STATE_NAMES
-
     out: dict[str, float] = {}
     for item in (t.strip() for t in text.split(",")):
         if not item:
@@ -98,8 +103,6 @@ def parse_fixed(text: str) -> dict[str, float]:
 
 def build_grid(grid: str, n: int, fixed: str):
     """EnvelopeGrid from the CLI flags; UsageError (one line) for any bad value."""
-    from harv_jax.evaluation.envelope.grid import GRID_AXES, make_grid
-
     if not 2 <= n <= MAX_POINTS_PER_AXIS:
         raise UsageError(f"--n {n} must be in [2, {MAX_POINTS_PER_AXIS}] (points per grid axis)")
     (x_name, x_rng), (y_name, y_rng) = parse_grid(grid)
@@ -113,81 +116,67 @@ def build_grid(grid: str, n: int, fixed: str):
         raise UsageError(str(e)) from None
 
 
-def register(app: typer.Typer) -> None:
-    @app.command()
-    @aircraft_option
-    @disturbance_options
-    def envelope(
-        controller: str = typer.Option("smc", help=controllers_help()),
-        policy: str = policy_option(),
-        grid: str = typer.Option(
-            "alpha0:r0",
-            help="Grid axes X:Y from V0, alpha0, beta0, p0, q0, r0, mu0, gamma0, h0; optional ranges in "
-            "state units (ft/s, rad, rad/s, ft), e.g. 'alpha0=-0.175,1.047:r0'. Default ranges: the "
-            "paper's reset bounds.",
-        ),
-        n: int = typer.Option(
-            100, parser=whole_number, help="Points per grid axis (n x n runs per controller)."
-        ),
-        duration: float = typer.Option(60.0, parser=real_number, help="Run length, s."),
-        target_alpha: float = typer.Option(
-            ALPHA_TARGET_RAD, parser=real_number, help="Target angle of attack, rad (beta_d = mu_d = 0)."
-        ),
-        fixed: str = typer.Option(
-            "",
-            help="Off-grid initial states, e.g. 'V0=300,h0=20000' (default V0=800 ft/s, alpha0=0.436 rad, "
-            f"beta0=p0=q0=r0=mu0=gamma0=chi0=0, h0={H0_FT:g} ft).",
-        ),
-        zeta: str = zeta_option(),
-        seed: int = typer.Option(
-            0, parser=whole_number, help="Seed of the controllers' keys (the grid itself is deterministic)."
-        ),
-        chunk: int | None = chunk_option(),
-        out: Path = typer.Option(Path("runs/envelope"), help="Output directory."),
-        force: bool = force_option(),
-        disturbance_spec: Any = None,
-        aircraft_name: str | None = None,
-    ) -> None:
-        """Recovery envelope map: outcome and recovery time over an initial-state grid, per controller."""
-        from harv_jax.cli_options import (
-            check_mc_options,
-            command_line,
-            controller_options,
-            warn_loop_mismatch,
-        )
-        from harv_jax.control.registry import build_controller, parse_controllers
-        from harv_jax.evaluation.envelope.study import envelope_study, write_envelope
-        from harv_jax.guards import check_closed_loop_batch, check_seed
-        from harv_jax.outdir import prepare_out_dir, read_paths
+@aircraft_option
+@disturbance_options
+@study_options(
+    chunk=True,
+    help={"seed": "Seed of the controllers' keys (the grid itself is deterministic)."},
+)
+def envelope(
+    controller: str = typer.Option("smc", help=controllers_help()),
+    policy: str = policy_option(),
+    grid: str = typer.Option(
+        "alpha0:r0",
+        help="Grid axes X:Y from V0, alpha0, beta0, p0, q0, r0, mu0, gamma0, h0; optional ranges in "
+        "state units (ft/s, rad, rad/s, ft), e.g. 'alpha0=-0.175,1.047:r0'. Default ranges: the "
+        "paper's reset bounds.",
+    ),
+    n: int = typer.Option(100, parser=whole_number, help="Points per grid axis (n x n runs per controller)."),
+    fixed: str = typer.Option(
+        "",
+        help="Off-grid initial states, e.g. 'V0=300,h0=20000' (default V0=800 ft/s, alpha0=0.436 rad, "
+        f"beta0=p0=q0=r0=mu0=gamma0=chi0=0, h0={H0_FT:g} ft).",
+    ),
+    zeta: str = zeta_option(),
+    out: Path = typer.Option(Path("runs/envelope"), help="Output directory."),
+    force: bool = force_option(),
+    study: StudyOptions = StudyOptions(),
+    disturbance_spec: Any = None,
+    aircraft_name: str | None = None,
+) -> None:
+    """Recovery envelope map: outcome and recovery time over an initial-state grid, per controller."""
+    names = parse_controllers(controller)
+    options = controller_options(names, policy, zeta)  # refuses an option none of them reads
+    zeta = options.zeta
+    g = build_grid(grid, n, fixed)
+    study = replace(study, runs=g.n_runs)  # checks the grid's run count as --runs
+    n_steps = round(study.duration_s / DT_S)
+    check_closed_loop_batch(g.n_runs, n_steps, n_steps, study.chunk, len(names), runs_flag="--n x --n =")
+    for name in names:  # fail fast, before creating the output directory
+        build_controller(name, options)
+    warn_loop_mismatch(names, policy, zeta)
+    out_dir = prepare_out_dir(out, force, read_paths(policy))
+    result = envelope_study(
+        names,
+        policy,
+        g,
+        study.target_alpha_rad,
+        study.duration_s,
+        study.seed,
+        study.chunk,
+        zeta,
+        command_line(),
+        typer.echo,
+        disturbances=disturbance_spec,
+        aircraft=aircraft_name,
+    )
+    write_envelope(out_dir, result)
+    typer.echo(
+        f"wrote {out_dir}/envelope_recovery.png, envelope_time.png, envelope.json, envelope_grid.csv, "
+        "envelope_grid.npz"
+    )
 
-        names = parse_controllers(controller)
-        options = controller_options(names, policy, zeta)  # refuses an option none of them reads
-        zeta = options.zeta
-        g = build_grid(grid, n, fixed)
-        check_mc_options(g.n_runs, target_alpha, duration, chunk)
-        check_seed(seed)
-        n_steps = round(duration / DT_S)
-        check_closed_loop_batch(g.n_runs, n_steps, n_steps, chunk, len(names), runs_flag="--n x --n =")
-        for name in names:  # fail fast, before creating the output directory
-            build_controller(name, options)
-        warn_loop_mismatch(names, policy, zeta)
-        out_dir = prepare_out_dir(out, force, read_paths(policy))
-        study = envelope_study(
-            names,
-            policy,
-            g,
-            target_alpha,
-            duration,
-            seed,
-            chunk,
-            zeta,
-            command_line(),
-            typer.echo,
-            disturbances=disturbance_spec,
-            aircraft=aircraft_name,
-        )
-        write_envelope(out_dir, study)
-        typer.echo(
-            f"wrote {out_dir}/envelope_recovery.png, envelope_time.png, envelope.json, envelope_grid.csv, "
-            "envelope_grid.npz"
-        )
+
+def register(app: typer.Typer) -> None:
+    """Add the command(s) of this module to ``app``."""
+    app.command()(envelope)

@@ -12,8 +12,12 @@ from pathlib import Path
 
 import typer
 
-from harv_jax.cli_options import force_option, real_number, whole_number
+from harv_jax import atomic, outdir, runlock
+from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT, check_aircraft_name
+from harv_jax.cli_options import command_line, force_option
 from harv_jax.errors import UsageError
+from harv_jax.evaluation.seeds.conditions import CONDITIONS, EvalSettings, file_sha256
+from harv_jax.study_options import StudyOptions, study_options
 
 #: The file that records an evaluation's settings (read back by ``--resume``).
 SETTINGS_FILE = "evaluate_settings.json"
@@ -51,8 +55,6 @@ def policy_files(run_dir: Path) -> list[Path]:
 def run_aircraft(run_dir: Path) -> str:
     """The registered aircraft a training run flew (its ``config.json``'s ``env.aircraft``; default harv);
     UsageError for a record that is not JSON or names an unknown aircraft."""
-    from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT, check_aircraft_name
-
     try:
         record = json.loads((run_dir / "config.json").read_text())
     except (OSError, ValueError):
@@ -68,8 +70,6 @@ def run_aircraft(run_dir: Path) -> str:
 
 def parse_conditions(text: str) -> tuple[str, ...]:
     """``--conditions``: ``all`` or a comma list of condition names; UsageError otherwise."""
-    from harv_jax.evaluation.seeds.conditions import CONDITIONS
-
     parts = [p.strip() for p in str(text).split(",") if p.strip()]
     if parts == ["all"]:
         return tuple(CONDITIONS)
@@ -80,11 +80,17 @@ def parse_conditions(text: str) -> tuple[str, ...]:
     return tuple(c for c in CONDITIONS if c in parts)
 
 
+#: Largest ``--runs`` of an evaluation (per condition; every seed and baseline flies them).
+MAX_EVAL_RUNS = 100_000
+
+
+@study_options(
+    runs=1000,
+    target_alpha=False,
+    help={"runs": "Monte Carlo runs per condition.", "seed": "Seed of the Monte Carlo's runs."},
+)
 def evaluate(
     run_dir: Path = typer.Argument(..., help="A training run folder (policy/policy_seed<i>.npz)."),
-    runs: int = typer.Option(1000, parser=whole_number, help="Monte Carlo runs per condition."),
-    seed: int = typer.Option(0, parser=whole_number, help="Seed of the Monte Carlo's runs."),
-    duration: float = typer.Option(60.0, parser=real_number, help="Run length, s."),
     conditions: str = typer.Option(
         "all",
         help="Conditions: all, or a comma list of clean, randomized, disturbed (--disturbances default), "
@@ -95,23 +101,19 @@ def evaluate(
         False, help="Continue an interrupted evaluation in --out: cells already written are kept."
     ),
     force: bool = force_option(),
+    study: StudyOptions = StudyOptions(),
 ) -> None:
     """Every seed of a training run: RL-only and the hybrid against the SMC and smc-brake-zoom on the same
     runs, clean and disturbed; per-seed table, IQM with 95% CI, pass/fail per criterion (JSON, md, png)."""
-    from harv_jax.cli_options import check_duration, command_line
-    from harv_jax.guards import check_seed
-
-    if not 1 <= runs <= 100_000:
-        raise UsageError(f"--runs {runs}: allowed: 1 to 100000")
-    check_seed(seed)
-    check_duration(duration)
+    if study.runs > MAX_EVAL_RUNS:
+        raise UsageError(f"--runs {study.runs}: allowed: 1 to {MAX_EVAL_RUNS}")
     conds = parse_conditions(conditions)
     files = policy_files(run_dir)
     if resume and force:
         raise UsageError("--resume keeps what --out holds and --force replaces it; give one of them")
-    from harv_jax.evaluation.seeds.conditions import EvalSettings, file_sha256
-
-    settings = EvalSettings(runs=runs, mc_seed=seed, duration_s=float(duration), conditions=conds)
+    settings = EvalSettings(
+        runs=study.runs, mc_seed=study.seed, duration_s=float(study.duration_s), conditions=conds
+    )
     record = {
         **settings.record(),
         "run_dir": str(run_dir),
@@ -119,6 +121,7 @@ def evaluate(
         "policies": [{"seed": i, "policy": str(p), "sha256": file_sha256(p)} for i, p in enumerate(files)],
     }
     out_dir = _open_out(out, resume, force, record, [run_dir])
+    # the evaluation pulls optax: imported here, not by every command (tools/results/house/cli_startup.json)
     from harv_jax.evaluation.seeds.flow import run_evaluation
 
     run_evaluation(out_dir, settings, record, files, command_line(), typer.echo)
@@ -127,8 +130,6 @@ def evaluate(
 def _open_out(out: Path, resume: bool, force: bool, record: dict, reads: list[Path]) -> Path:
     """The output folder: new (``--force`` may replace it), or with ``--resume`` the folder of an
     interrupted evaluation of the same settings and policies."""
-    from harv_jax import atomic, outdir, runlock
-
     if not resume:
         out_dir = outdir.prepare_out_dir(out, force, outdir.read_paths(*reads))
         atomic.write_text(out_dir / SETTINGS_FILE, json.dumps(record, indent=1) + "\n")

@@ -10,19 +10,20 @@ from pathlib import Path
 
 import typer
 
-from harv_jax.cli_options import force_option
+from harv_jax.cli_options import command_line, force_option
+from harv_jax.report import build_report
+
+
+def report(
+    run_dir: Path = typer.Argument(..., help="A run directory (mc, compare, envelope, fly, quickstart)."),
+    out: Path = typer.Option(None, help="Report directory (default: RUN_DIR itself)."),
+    force: bool = force_option("report / non-empty --out directory"),
+) -> None:
+    """Markdown + standalone HTML report of a run directory's figures and tables, with its commands."""
+    md_path, html_path = build_report(run_dir, out, force, command_line())
+    typer.echo(f"wrote {md_path} and {html_path}")
 
 
 def register(app: typer.Typer) -> None:
-    @app.command()
-    def report(
-        run_dir: Path = typer.Argument(..., help="A run directory (mc, compare, envelope, fly, quickstart)."),
-        out: Path = typer.Option(None, help="Report directory (default: RUN_DIR itself)."),
-        force: bool = force_option("report / non-empty --out directory"),
-    ) -> None:
-        """Markdown + standalone HTML report of a run directory's figures and tables, with its commands."""
-        from harv_jax.cli_options import command_line
-        from harv_jax.report import build_report
-
-        md_path, html_path = build_report(run_dir, out, force, command_line())
-        typer.echo(f"wrote {md_path} and {html_path}")
+    """Add the command(s) of this module to ``app``."""
+    app.command()(report)
