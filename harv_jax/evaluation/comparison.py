@@ -19,6 +19,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from harv_jax import atomic
+from harv_jax.aircraft.registry import resolve_aircraft
+from harv_jax.dynamics import CONTROL_NAMES, WIND_STATE_NAMES
 from harv_jax.evaluation.flight import FlightResult, fly
 from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec
 from harv_jax.evaluation.montecarlo.paired import REFERENCE_CONTROLLER, paired_vs_smc, times_nr_at_run_s
@@ -150,7 +152,6 @@ def compare(
     """Fly every controller on the spin and from ``fixed_state`` (a wind state by name); no files.
     ``disturbances``: after engagement, the same for every controller (``flight.fly``); ``aircraft``: the
     nominal aircraft (a registry name or ``AircraftParams``; None: the default), recorded by name."""
-    from harv_jax.aircraft.registry import resolve_aircraft
 
     aircraft_name, nominal = resolve_aircraft(aircraft)
     say = progress or (lambda _msg: None)
@@ -252,7 +253,6 @@ def write_tables(
 def write_comparison(out_dir: Path, comp: Comparison, command: str) -> None:
     """fixed_state.json, <scenario>_trajectories.png (and <scenario>_hybrid.png), compare_metrics.md/.csv
     and compare.json (``command``: the command line recorded in it)."""
-    from harv_jax.dynamics import CONTROL_NAMES, WIND_STATE_NAMES
     from harv_jax.plots.flight import plot_hybrid
     from harv_jax.plots.time_histories import plot_time_histories
 

@@ -15,9 +15,25 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from harv_jax import atomic
+from harv_jax.aircraft.registry import resolve_aircraft
+from harv_jax.control import default_gains
 from harv_jax.control.hybrid.settings import DEFAULT_ZETA
-from harv_jax.control.registry import ControllerOptions
+from harv_jax.control.registry import ControllerOptions, build_controller
+from harv_jax.dynamics import CONTROL_NAMES, WIND_STATE_NAMES, from_wind
+from harv_jax.evaluation.certificate import empirical_certificate, unsaturated_steps
+from harv_jax.evaluation.closed_loop import WIND_INFO_KEY, evaluate
 from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec
+from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs
+from harv_jax.evaluation.summary import flight_summary, metrics_to_dict
+from harv_jax.numfmt import write_json
+from harv_jax.task.scenarios import (
+    SPIN_CONTROLS_RAD,
+    open_loop,
+    sample_table_states,
+    spin_check,
+    spin_controls_rad,
+    spin_entry_state,
+)
 from harv_jax.task.spec import DT_S
 
 if TYPE_CHECKING:
@@ -72,9 +88,6 @@ def _runner(controller_name: str, options: ControllerOptions, n_steps: int, max_
     """Jitted closed-loop evaluation (cached per process so repeated calls reuse one compile)."""
     import jax
 
-    from harv_jax.control.registry import build_controller
-    from harv_jax.evaluation.closed_loop import evaluate
-
     controller = build_controller(controller_name, options)
 
     @functools.partial(jax.jit, compiler_options=FAST_COMPILE)
@@ -103,8 +116,6 @@ def _runner(controller_name: str, options: ControllerOptions, n_steps: int, max_
 def _spin_runner(n_steps: int):
     import jax
 
-    from harv_jax.task.scenarios import open_loop, spin_controls_rad
-
     @functools.partial(jax.jit, compiler_options=FAST_COMPILE)
     def run(params, x0_wind):
         return open_loop(params, x0_wind, spin_controls_rad(x0_wind.dtype), n_steps, DT_S)
@@ -113,8 +124,6 @@ def _spin_runner(n_steps: int):
 
 
 def _certificate(info: dict, traj: Any, params: Any, switching: str, n_run: int) -> dict[str, Any]:
-    from harv_jax.control import default_gains
-    from harv_jax.evaluation.certificate import empirical_certificate, unsaturated_steps
 
     g = default_gains()
     z = info["zeta"] if "zeta" in info else np.ones(n_run)
@@ -162,11 +171,6 @@ def fly(
     import jax
     import jax.numpy as jnp
 
-    from harv_jax.aircraft.registry import resolve_aircraft
-    from harv_jax.dynamics import WIND_STATE_NAMES, from_wind
-    from harv_jax.evaluation.summary import metrics_to_dict
-    from harv_jax.task.scenarios import SPIN_CONTROLS_RAD, sample_table_states, spin_check, spin_entry_state
-
     params = resolve_aircraft(aircraft)[1]
     key = jax.random.key(seed)
     key_state, key_ctrl = jax.random.split(key)
@@ -194,13 +198,10 @@ def fly(
     x0_dict = {n: float(v) for n, v in zip(WIND_STATE_NAMES, np.asarray(x0), strict=True)}
     reference = jnp.asarray([target_alpha_rad, 0.0, 0.0], jnp.float32)
     options = ControllerOptions(policy=policy, zeta=zeta, switching=switching)
-    from harv_jax.evaluation.closed_loop import WIND_INFO_KEY
 
     spec = disturbances or DisturbanceSpec()
     extra = {}
     if spec.active:
-        from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs
-
         run0 = jax.tree.map(
             lambda a: a[0], sample_mc_inputs(jax.random.key(seed), 1, params, disturbances=spec)
         )
@@ -249,9 +250,6 @@ def write_flight(out_dir: Path, res: FlightResult, settings: dict[str, Any]) -> 
 
     ``settings``: ``harv_jax.evaluation.summary.flight_settings``.
     """
-    from harv_jax.dynamics import CONTROL_NAMES, WIND_STATE_NAMES
-    from harv_jax.evaluation.summary import flight_summary
-    from harv_jax.numfmt import write_json
     from harv_jax.plots.flight import S_E_NAMES, plot_hybrid, plot_sliding
     from harv_jax.plots.time_histories import plot_time_histories
 

@@ -29,6 +29,7 @@ from harv_jax.evaluation.closed_loop import closed_loop, score
 from harv_jax.evaluation.montecarlo.paired import times_nr_at_run_s
 from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
+from harv_jax.task.spin_bank import make_spin_bank, nominal_spin
 
 #: Key offsets of the evaluation batch (far from the training seeds and from the Monte Carlo's seed 0).
 EVAL_KEY_SEED = 2_000_001
@@ -55,7 +56,6 @@ def make_eval_batch(
     n_upset: int, n_spin: int, nominal: AircraftParams, randomize: bool = False, seed: int = EVAL_KEY_SEED
 ) -> EvalBatch:
     """The fixed evaluation batch (see the module docstring)."""
-    from harv_jax.task.spin_bank import make_spin_bank, nominal_spin
 
     k_mc, k_bank = jax.random.split(jax.random.key(seed))
     mc = sample_mc_inputs(k_mc, n_upset, nominal, randomize=randomize) if n_upset else None

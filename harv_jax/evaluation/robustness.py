@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from harv_jax.aircraft.registry import resolve_aircraft
 from harv_jax.control.base import Controller
 from harv_jax.errors import UsageError
 from harv_jax.evaluation.montecarlo.disturbances import (
@@ -27,6 +28,8 @@ from harv_jax.evaluation.montecarlo.disturbances import (
     DisturbanceSpec,
     parse_turbulence,
 )
+from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs, with_full_structure
+from harv_jax.evaluation.summary import summarize_controller
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 if TYPE_CHECKING:
@@ -133,10 +136,6 @@ def robustness_sweep(
     """
     import jax
     import jax.numpy as jnp
-
-    from harv_jax.aircraft.registry import resolve_aircraft
-    from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs, with_full_structure
-    from harv_jax.evaluation.summary import summarize_controller
 
     say = progress or (lambda _msg: None)
     levels = dict(SWEEP_LEVELS if levels is None else levels)

@@ -10,11 +10,12 @@ from __future__ import annotations
 
 from typing import Any
 
+from harv_jax.control.registry import uses_option
+from harv_jax.policies import DEFAULT_POLICY_SPEC
+
 
 def controllers_setting(names: list[str], policy: str | None, zeta: str) -> dict[str, Any]:
     """``policy`` and ``zeta_schedule`` of a summary: recorded only when a controller reads them."""
-    from harv_jax.control.registry import uses_option
-    from harv_jax.policies import DEFAULT_POLICY_SPEC
 
     return {
         "policy": (policy or DEFAULT_POLICY_SPEC) if uses_option(names, "policy") else None,

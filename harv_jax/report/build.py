@@ -7,6 +7,7 @@ from pathlib import Path
 
 from harv_jax import atomic
 from harv_jax.errors import UsageError
+from harv_jax.outdir import note_incomplete, prepare_out_dir
 from harv_jax.report.document import Doc, to_html, to_markdown
 from harv_jax.report.robustness_section import robustness_section
 from harv_jax.report.scan import MAX_DEPTH, REPORT_FILES, Section, provenance, run_kind, scan
@@ -92,7 +93,6 @@ def build_document(run_dir: Path, sections: list[Section], report_cmd: str) -> D
 
 def _prepare(run_dir: Path, out: Path | None, force: bool) -> Path:
     """The report directory (created); UsageError when it would overwrite something without --force."""
-    from harv_jax.outdir import prepare_out_dir
 
     if out is None or out.resolve() == run_dir.resolve():
         existing = [n for n in REPORT_FILES if (run_dir / n).exists()]
@@ -139,7 +139,6 @@ def build_report(
             f"(searched {MAX_DEPTH} levels of sub-directories)"
         )
     report_dir = _prepare(run_dir, out, force)
-    from harv_jax.outdir import note_incomplete
 
     note_incomplete(run_dir)
     if report_cmd is None:

@@ -9,6 +9,8 @@ import shlex
 from collections.abc import Sequence
 from typing import Any
 
+from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT
+from harv_jax.control.registry import CONTROLLERS, split_filter
 from harv_jax.evaluation.summary import (
     FLY_SETTING_KEYS,
     MC_HYBRID_ROWS,
@@ -179,7 +181,6 @@ def identical_flights(rows: list[dict]) -> list[str]:
 
 def controllers_section(doc: Doc, names: list[str]) -> None:
     """Each controller of the report, introduced once, before any table names it (the registry's help)."""
-    from harv_jax.control.registry import CONTROLLERS, split_filter
 
     rows = []
     for name in names:
@@ -244,7 +245,6 @@ def fly_section(doc: Doc, metrics_doc: dict) -> None:
 
 def reconstruct_fly_command(metrics_doc: dict) -> str | None:
     """The ``harv-jax fly`` command equivalent to a metrics.json's settings (it records none)."""
-    from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT
 
     if "controller" not in metrics_doc or "scenario" not in metrics_doc:
         return None

@@ -15,9 +15,13 @@ from importlib.resources.abc import Traversable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT
 from harv_jax.errors import UsageError
 from harv_jax.ppo import config as ppo_config
 from harv_jax.ppo.config import PPOConfig
+from harv_jax.training.demos import resolve_demos_path
+from harv_jax.training.in_loop import LOOP_KEY, parse_loop
+from harv_jax.training.spec import TrainSpec, check_env_table
 
 if TYPE_CHECKING:  # the preset files are read without jax (the command-line help does)
     from harv_jax.training.spec import TrainSpec
@@ -86,16 +90,12 @@ def load_preset(name: str, check_env: bool = True) -> tuple[PPOConfig, dict[str,
     if (
         cfg.demos is not None
     ):  # a relative path is the preset folder's (a preset and its demos travel together)
-        from harv_jax.training.demos import resolve_demos_path
-
         cfg = cfg.replace(demos=resolve_demos_path(cfg.demos, Path(str(path)).parent))
     env = dict(tables.get("env", {}))
     for table in NESTED_TABLES:  # stored inside the env settings (checkpoints keep them for --resume)
         if table in tables:
             env[table] = dict(tables[table])
     if check_env:  # every table and the wrapper keys' rules (those with [ppo] settings: in the spec)
-        from harv_jax.training.spec import check_env_table
-
         try:
             check_env_table(env)
         except UsageError as e:
@@ -115,9 +115,6 @@ def load_spec(
     command line: ``overrides`` of ``[ppo]`` fields (None values: not given), ``--in-loop``, ``--aircraft``
     (None: the preset's ``[env] aircraft``, else the registry's default; always recorded),
     ``--init-policy`` and ``--target-recovery``. UsageError naming the first bad value."""
-    from harv_jax.aircraft.registry import DEFAULT_AIRCRAFT
-    from harv_jax.training.in_loop import LOOP_KEY, parse_loop
-    from harv_jax.training.spec import TrainSpec
 
     name = preset or DEFAULT_PRESET
     cfg, env_table = load_preset(name)

@@ -16,10 +16,24 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from harv_jax import atomic
+from harv_jax.aircraft.registry import resolve_aircraft
 from harv_jax.control.base import Controller
 from harv_jax.control.hybrid.settings import DEFAULT_ZETA
-from harv_jax.evaluation.envelope.grid import EnvelopeGrid, EnvelopeMap
+from harv_jax.control.registry import ControllerOptions, build_controller
+from harv_jax.evaluation.envelope.grid import (
+    GRID_AXES,
+    EnvelopeGrid,
+    EnvelopeMap,
+    envelope_inputs,
+    grid_description,
+    grid_states,
+    run_envelope,
+)
 from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec
+from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs
+from harv_jax.evaluation.summary import RECOVERY_RATE, envelope_summary, summarize_envelope
+from harv_jax.numfmt import write_json
+from harv_jax.task.criteria import OUTCOME_NAMES
 from harv_jax.task.spec import DT_S
 
 if TYPE_CHECKING:
@@ -61,11 +75,6 @@ def envelope_study(
     import jax
     import jax.numpy as jnp
 
-    from harv_jax.aircraft.registry import resolve_aircraft
-    from harv_jax.control.registry import ControllerOptions, build_controller
-    from harv_jax.evaluation.envelope.grid import envelope_inputs, grid_description, run_envelope
-    from harv_jax.evaluation.summary import RECOVERY_RATE, envelope_summary, summarize_envelope
-
     say = progress or (lambda _msg: None)
     options = ControllerOptions(policy=policy, zeta=zeta)
     if isinstance(controllers, Mapping):  # a user's own controllers, name -> Controller
@@ -79,8 +88,6 @@ def envelope_study(
     inputs = envelope_inputs(jax.random.key(seed), grid, nominal)
     spec = disturbances or DisturbanceSpec()
     if spec.active:
-        from harv_jax.evaluation.montecarlo.rollout import sample_mc_inputs
-
         drawn = sample_mc_inputs(jax.random.key(seed), grid.n_runs, nominal, disturbances=spec)
         inputs = drawn.replace(x0_wind=inputs.x0_wind, keys=inputs.keys)
     doc = envelope_summary(
@@ -113,7 +120,6 @@ def envelope_study(
 
 def write_grid_csv(path: Path, grid: EnvelopeGrid, maps: dict[str, EnvelopeMap]) -> None:
     """One row per (controller, grid point): indices, the two grid values, outcome and metrics."""
-    from harv_jax.task.criteria import OUTCOME_NAMES
 
     xs, ys = grid.x_values, grid.y_values
     header = [
@@ -157,10 +163,7 @@ def write_grid_csv(path: Path, grid: EnvelopeGrid, maps: dict[str, EnvelopeMap])
 
 def write_envelope(out_dir: Path, study: EnvelopeStudy) -> None:
     """envelope_recovery.png, envelope_time.png, envelope_grid.npz, envelope_grid.csv and envelope.json."""
-    from harv_jax.evaluation.envelope.grid import GRID_AXES, grid_states
-    from harv_jax.numfmt import write_json
     from harv_jax.plots.maps import plot_outcome_maps, plot_time_maps
-    from harv_jax.task.criteria import OUTCOME_NAMES
 
     doc, grid, maps = study.summary, study.grid, study.maps
     duration_s, alpha_deg = doc["duration_s"], np.degrees(doc["target_alpha_rad"])

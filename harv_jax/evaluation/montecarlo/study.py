@@ -16,11 +16,17 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from harv_jax import atomic
+from harv_jax.aircraft.registry import resolve_aircraft
 from harv_jax.control.base import Controller
 from harv_jax.control.hybrid.settings import DEFAULT_ZETA
+from harv_jax.control.registry import ControllerOptions, build_controller
+from harv_jax.dynamics import WIND_STATE_NAMES
 from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec, describe_disturbances
-from harv_jax.evaluation.montecarlo.rollout import MCRunOutput
-from harv_jax.numfmt import fmt_num
+from harv_jax.evaluation.montecarlo.paired import paired_vs_smc
+from harv_jax.evaluation.montecarlo.rollout import MCRunOutput, run_mc, sample_mc_inputs
+from harv_jax.evaluation.summary import mc_summary, summarize_controller
+from harv_jax.numfmt import fmt_num, write_json
+from harv_jax.task.criteria import OUTCOME_NAMES
 from harv_jax.task.spec import DT_S, H0_FT
 from harv_jax.task.turbulent_criterion import criterion_record
 
@@ -77,12 +83,6 @@ def monte_carlo(
     """
     import jax
     import jax.numpy as jnp
-
-    from harv_jax.aircraft.registry import resolve_aircraft
-    from harv_jax.control.registry import ControllerOptions, build_controller
-    from harv_jax.evaluation.montecarlo.paired import paired_vs_smc
-    from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
-    from harv_jax.evaluation.summary import mc_summary, summarize_controller
 
     say = progress or (lambda _msg: None)
     options = ControllerOptions(policy=policy, zeta=zeta)
@@ -156,8 +156,6 @@ def write_runs_csv(
     """One row per (controller, run): initial state, outcome, metrics; with disturbances on, their levels
     (``noise_scale``, ``delay_ms``, ``gust_fps``, ``model_error``, ``actuator_lag_s``, ``turbulence``) as the
     last columns."""
-    from harv_jax.dynamics import WIND_STATE_NAMES
-    from harv_jax.task.criteria import OUTCOME_NAMES
 
     header = (
         ["controller", "run"]
@@ -210,7 +208,6 @@ def write_monte_carlo(out_dir: Path, study: MonteCarloStudy, save_trajectories: 
     """summary.json, bands_*.png/.csv (bands_all.png: every controller side by side, one column each; all
     band plots share one y-scale per variable), terminal_errors.png, runs.csv (and trajectories_*.npz:
     t_s [T], alpha_beta_mu_rad [N, T, 3] every ``record_every`` steps, if asked)."""
-    from harv_jax.numfmt import write_json
     from harv_jax.plots.mc import (
         band_limits_deg,
         plot_mc_bands,

@@ -49,6 +49,7 @@ from harv_jax.guards import AUTO_CHUNK_RUNS_PER_CPU_DEVICE, auto_chunk
 from harv_jax.policy import Policy, traced_action
 from harv_jax.task.measurement_path import MeasurementPath
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S, H0_FT
+from harv_jax.task.spin_bank import nominal_spin
 
 #: The policy's controller kinds.
 POLICY_CONTROLLERS = ("rl", "hybrid")
@@ -198,8 +199,6 @@ class Evaluator:
         """The condition's runs (cached)."""
         if cond.name not in self._inputs:
             if cond.disturbances is None:
-                from harv_jax.task.spin_bank import nominal_spin
-
                 self._inputs[cond.name] = nominal_spin(self.nominal)
             else:
                 self._inputs[cond.name] = condition_inputs(cond, self.settings, self.nominal)
