@@ -110,7 +110,7 @@ def quickstart(
     paths = build_report(out_dir, out_dir)
     report = ": " + ", ".join(str(p) for p in paths)
     typer.echo(f"[quickstart] done in {time.perf_counter() - t0:.0f} s; results in {out_dir}" + report)
-    for name, c in study.summary["controllers"].items():
+    for name, c in result.summary["controllers"].items():
         a = c["terminal_error_deg"]["alpha"]
         typer.echo(
             f"[quickstart] {name}: recovery rate {c['recovery_rate']:.3f}, terminal alpha error "
