@@ -13,7 +13,7 @@ from compile_options import FAST_COMPILE
 
 from harv_jax.aircraft import harv
 from harv_jax.control import make_smc
-from harv_jax.control.hybrid.law import HybridConfig, default_hybrid_gains, make_hybrid
+from harv_jax.control.hybrid.law import HybridConfig, default_hybrid_gains, make_hybrid, path_hybrid_gains
 from harv_jax.control.hybrid.zeta import (
     SIMPLEX_FALLBACK_SMC,
     SIMPLEX_REASONS,
@@ -104,6 +104,13 @@ def test_fallback_gains_are_the_default_gains_but_the_softer_reaching_and_surfac
         np.testing.assert_array_equal(got, default if want is None else np.full_like(default, want))
     assert set(SIMPLEX_FALLBACK_SMC) == {"lambda1_ps", "k_reach", "eps_radps2", "phi_radps"}
     chex.assert_trees_all_equal(default_hybrid_gains(jnp.float32).simplex.fallback_smc, f)  # what it flies
+
+
+def test_behind_a_path_the_fallback_has_the_default_gains_and_nothing_else_changes():
+    path, plain = path_hybrid_gains(jnp.float32), default_hybrid_gains(jnp.float32)
+    chex.assert_trees_all_equal(path.simplex.fallback_smc, default_gains(jnp.float32))
+    chex.assert_trees_all_equal(path.replace(simplex=plain.simplex), plain)
+    chex.assert_trees_all_equal(path.simplex.replace(fallback_smc=plain.simplex.fallback_smc), plain.simplex)
 
 
 def test_hand_over_at_engagement_flies_the_smc():

@@ -8,6 +8,7 @@ import json
 import math
 from pathlib import Path
 
+import chex
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -70,6 +71,24 @@ def test_a_policy_flies_behind_the_path_it_carries(tmp_path, kind):
     np.testing.assert_array_equal(u_b, u_s)  # exactly as the suffix flies it
     np.testing.assert_array_equal(x_b, x_s)
     assert not np.array_equal(u_b, _fly(plain)[1])  # and the path acts
+
+
+def test_behind_a_path_the_hybrid_flies_the_path_gains(tmp_path, monkeypatch):
+    """Carried or by suffix, behind a path the hybrid takes ``path_hybrid_gains`` (its simplex fallback on
+    the default SMC gains); without one the default gains, as before."""
+    from harv_jax.control.hybrid import law
+
+    seen = []
+    monkeypatch.setattr(law, "make_hybrid", lambda act, cfg, gains: seen.append(gains))
+    monkeypatch.setattr("harv_jax.control.registry.with_measurement_path", lambda ctrl, path: ctrl)
+    carried = _with_meta(tmp_path, "lp.npz", measurement_path={"kind": "lp", "bandwidth_hz": 2.0})
+    build_controller("hybrid", ControllerOptions(policy=str(carried)))
+    build_controller("hybrid+obs0.3", ControllerOptions(policy=str(SHIPPED)))
+    build_controller("hybrid", ControllerOptions(policy=str(SHIPPED)))
+    path, plain = law.path_hybrid_gains(), law.default_hybrid_gains()
+    chex.assert_trees_all_equal(seen[0], path)
+    chex.assert_trees_all_equal(seen[1], path)
+    chex.assert_trees_all_equal(seen[2], plain)
 
 
 def test_a_policy_without_a_path_is_unchanged():

@@ -110,26 +110,38 @@ def _policy(policy: str | None) -> Any:
     return pol
 
 
-def _behind_path(ctrl: Controller, pol: Any) -> Controller:
-    """``ctrl`` behind the measurement path ``pol`` carries (as it was trained), if any."""
-    path = policy_path(pol)
+def policy_controller(
+    kind: str, act: Callable[[Any], Any], zeta: str, path: MeasurementPath | None
+) -> Controller:
+    """The policy ``act`` (``obs -> action``) flown as ``kind`` (``rl``, or ``hybrid`` with the ζ schedule
+    ``zeta``) behind ``path``, the measurement path it was trained behind (None: none), as ``--controller
+    rl``/``hybrid`` fly it. Behind a path the hybrid takes ``control.hybrid.law.path_hybrid_gains``."""
+    from harv_jax.control.hybrid.law import HybridConfig, default_hybrid_gains, make_hybrid, path_hybrid_gains
+    from harv_jax.control.rl import make_rl_controller
+
+    if kind == "rl":
+        ctrl = make_rl_controller(act)
+    else:
+        gains = default_hybrid_gains() if path is None else path_hybrid_gains()
+        ctrl = make_hybrid(act, HybridConfig(schedule=zeta), gains)
     return ctrl if path is None else with_measurement_path(ctrl, path)
 
 
 def _build_rl(opts: ControllerOptions) -> Controller:
-    from harv_jax.control.rl import make_rl_controller
-
     pol = _policy(opts.policy)
-    return _behind_path(make_rl_controller(pol.deterministic), pol)
+    return policy_controller("rl", pol.deterministic, opts.zeta, policy_path(pol))
+
+
+def _hybrid_zeta(opts: ControllerOptions) -> str:
+    """``opts.zeta``; UsageError if it names no ζ schedule."""
+    if opts.zeta not in ZETA_SCHEDULES:
+        raise UsageError(f"--zeta {opts.zeta!r} is unknown; allowed: {', '.join(ZETA_SCHEDULES)}")
+    return opts.zeta
 
 
 def _build_hybrid(opts: ControllerOptions) -> Controller:
-    from harv_jax.control.hybrid.law import HybridConfig, make_hybrid
-
     pol = _policy(opts.policy)
-    if opts.zeta not in ZETA_SCHEDULES:
-        raise UsageError(f"--zeta {opts.zeta!r} is unknown; allowed: {', '.join(ZETA_SCHEDULES)}")
-    return _behind_path(make_hybrid(pol.deterministic, HybridConfig(schedule=opts.zeta)), pol)
+    return policy_controller("hybrid", pol.deterministic, _hybrid_zeta(opts), policy_path(pol))
 
 
 #: The controllers, in help order.
@@ -250,7 +262,8 @@ def policy_path(policy: Any) -> MeasurementPath | None:
 def build_controller(name: str, options: ControllerOptions | None = None) -> Controller:
     """The controller ``name`` built with ``options``; UsageError for an unknown name or bad option. A
     policy that carries its measurement path flies behind it (``rl``, ``hybrid``); a suffix on such a
-    policy's controller is refused."""
+    policy's controller is refused. Behind a path, carried or by suffix, the hybrid is
+    ``policy_controller``'s."""
     base, path = split_filter(name)
     if base not in CONTROLLERS:
         raise _unknown(name)
@@ -265,6 +278,9 @@ def build_controller(name: str, options: ControllerOptions | None = None) -> Con
                 f"controller {name!r}: the policy {options.policy or 'shipped'!r} carries its measurement "
                 f"path ({rec['kind']} {rec['bandwidth_hz']:g} Hz) and flies behind it; drop the suffix"
             )
+    if path is not None and base == "hybrid":
+        zeta = _hybrid_zeta(options)
+        return policy_controller("hybrid", _policy(options.policy).deterministic, zeta, path)
     ctrl = CONTROLLERS[base].build(options)
     return ctrl if path is None else with_measurement_path(ctrl, path)
 

@@ -37,10 +37,8 @@ import numpy as np
 
 from harv_jax import atomic
 from harv_jax.aircraft.params import AircraftParams
-from harv_jax.control.hybrid.law import HybridConfig, make_hybrid
 from harv_jax.control.hybrid.settings import DEFAULT_ZETA
-from harv_jax.control.registry import build_controller, policy_path, with_measurement_path
-from harv_jax.control.rl import make_rl_controller
+from harv_jax.control.registry import build_controller, policy_controller, policy_path
 from harv_jax.evaluation.closed_loop import closed_loop, score
 from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec, parse_disturbances
 from harv_jax.evaluation.montecarlo.inputs import MCInputs, sample_mc_inputs
@@ -152,9 +150,7 @@ def _policy_controller(
 ):
     """The policy as ``kind`` (rl, hybrid), behind the measurement path it was trained behind (if any), as
     ``control.registry`` builds it."""
-    one = lambda obs: act(params, normalizer, obs)  # noqa: E731
-    ctrl = make_rl_controller(one) if kind == "rl" else make_hybrid(one, HybridConfig(schedule=zeta))
-    return ctrl if path is None else with_measurement_path(ctrl, path)
+    return policy_controller(kind, lambda obs: act(params, normalizer, obs), zeta, path)
 
 
 def _cell(recovered: Any, t_recover_s: Any, tv: Any, chatter: Any) -> dict[str, np.ndarray]:
