@@ -29,7 +29,7 @@ from harv_jax.training.demos import resolve_demos_path
 from harv_jax.training.presets import DEFAULT_PRESET, available_presets, load_preset, load_spec
 from harv_jax.training.run import check_periods, check_run_flags, run_train
 
-__all__ = ["preset_defaults", "register"]
+__all__ = ["preset_defaults", "register", "train"]
 
 
 @functools.cache
