@@ -97,7 +97,12 @@ def main() -> None:
                 "heavy": heavy,
             }
         )
-    doc = {"cpu_model": cpu_model(), "repeats": args.repeats, "checkouts": checkouts}
+    doc = {
+        "cpu_model": cpu_model(),
+        "repeats": args.repeats,
+        "bytecode_cache": not os.environ.get("PYTHONDONTWRITEBYTECODE"),  # without it every import compiles
+        "checkouts": checkouts,
+    }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(doc, indent=1) + "\n")
     print(json.dumps(doc, indent=1))
