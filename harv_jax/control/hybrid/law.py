@@ -135,12 +135,9 @@ def default_hybrid_gains(dtype=None) -> HybridGains:
 
 def path_hybrid_gains(dtype=None) -> HybridGains:
     """``default_hybrid_gains`` for a policy that flies behind a measurement path (the disturbed world):
-    the ``simplex`` fallback SMC with the default SMC gains instead of the soft ones.
-
-    Under ``--disturbances default`` the soft fallback loses runs the default gains recover: the 5 policies
-    of the ``robust`` preset's final run 99.6-100% -> 99.9-100% recovered, the random-weight fixture 98.6% ->
-    100%, at +3% clean control TV (``experiments/robust_policy/README.md``, "The hybrid's hand-over").
-    """
+    the ``simplex`` fallback SMC with the default SMC gains instead of the soft ones, which lose disturbed
+    runs that these recover (``experiments/robust_policy/README.md``, "The hybrid's hand-over under
+    disturbances")."""
     g = default_hybrid_gains(dtype)
     return g.replace(simplex=g.simplex.replace(fallback_smc=default_gains(g.smc.lambda1_ps.dtype)))
 
