@@ -16,11 +16,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+from harv_jax.optimal.outputs import cpu_model
 
 #: The modules the commands import inside their functions (they pull optax or matplotlib), by command.
 HEAVY = {
@@ -29,17 +30,6 @@ HEAVY = {
     "train": "harv_jax.ppo.runner",
     "simulate": "harv_jax.plots.time_histories",
 }
-
-
-def cpu_model() -> str:
-    """The CPU model line of /proc/cpuinfo, else the platform's processor string."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def wall_s(code: str, env: dict[str, str], repeats: int) -> float:
