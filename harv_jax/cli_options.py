@@ -28,7 +28,6 @@ from harv_jax.control.registry import (
 from harv_jax.errors import UsageError
 from harv_jax.evaluation.montecarlo.disturbances import parse_disturbances
 from harv_jax.task.disturbance_table import BY_NAME, LEVEL_NAMES
-from harv_jax.task.spec import RECOVERY_HOLD_S
 
 POLICY_HELP = (
     "rl/hybrid policy: run folder, .npz, checkpoint\\[@seed], shipped:robust (default), shipped:teacher, "
@@ -38,7 +37,6 @@ ZETA_HELP = (
     "Hybrid zeta schedule: simplex (the policy alone until a monitor hands over to the SMC for good), "
     "continuous, hysteresis (the paper's), gated (per channel, from the reaching condition), always, never."
 )
-MAX_RUNS = 1_000_000
 MAX_DURATION_S = 600.0
 SWITCHING = ("sat", "sign")
 
@@ -110,16 +108,6 @@ def controllers_help() -> str:
 def command_line() -> str:
     """The ``harv-jax …`` command being run (recorded in the JSON outputs)."""
     return "harv-jax " + " ".join(shlex.quote(a) for a in sys.argv[1:])
-
-
-def check_duration(duration: float) -> None:
-    """``--duration`` of a closed-loop command: longer than the recovery criterion's hold (a shorter run
-    could never be scored recovered) and at most [`MAX_DURATION_S`][]."""
-    if not (math.isfinite(duration) and RECOVERY_HOLD_S < duration <= MAX_DURATION_S):
-        raise UsageError(
-            f"--duration {duration} s: allowed ({RECOVERY_HOLD_S:g}, {MAX_DURATION_S:g}] s (longer than the "
-            f"recovery criterion's {RECOVERY_HOLD_S:g} s hold, or no run could be scored recovered)"
-        )
 
 
 def check_fly_options(controller: str, switching: str | None, spin_s: float) -> None:

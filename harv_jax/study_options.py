@@ -18,8 +18,7 @@ from typing import Any
 import typer
 
 from harv_jax.cli_options import (
-    MAX_RUNS,
-    check_duration,
+    MAX_DURATION_S,
     chunk_option,
     real_number,
     whole_number,
@@ -27,7 +26,10 @@ from harv_jax.cli_options import (
 )
 from harv_jax.errors import UsageError
 from harv_jax.guards import check_seed
-from harv_jax.task.spec import ALPHA_MAX_RAD, ALPHA_MIN_RAD, ALPHA_TARGET_RAD
+from harv_jax.task.spec import ALPHA_MAX_RAD, ALPHA_MIN_RAD, ALPHA_TARGET_RAD, RECOVERY_HOLD_S
+
+#: Largest ``--runs`` of a study.
+MAX_RUNS = 1_000_000
 
 _HELP = {
     "runs": "Monte Carlo runs.",
@@ -35,6 +37,16 @@ _HELP = {
     "duration": "Run length, s.",
     "target_alpha": "Target angle of attack alpha_d, rad (beta_d = mu_d = 0).",
 }
+
+
+def check_duration(duration_s: float) -> None:
+    """``--duration`` of a closed-loop command: longer than the recovery criterion's hold (a shorter run
+    could never be scored recovered) and at most ``MAX_DURATION_S``."""
+    if not (math.isfinite(duration_s) and RECOVERY_HOLD_S < duration_s <= MAX_DURATION_S):
+        raise UsageError(
+            f"--duration {duration_s} s: allowed ({RECOVERY_HOLD_S:g}, {MAX_DURATION_S:g}] s (longer than "
+            f"the recovery criterion's {RECOVERY_HOLD_S:g} s hold, or no run could be scored recovered)"
+        )
 
 
 @dataclass(frozen=True)
