@@ -12,7 +12,8 @@ trees alike. With ``--copies N`` each tree is built N times (builds alternating 
 median over the copies of each copy's best time is used: on a shared virtual machine two executables of
 the same code differed by up to ~10% in best time, so one copy per tree cannot resolve changes that small.
 Kinds: ``smc``, ``hybrid`` (continuous), and with any of ``hybrid_gated``, ``hybrid_simplex``,
-``hybrid_simplex_zero_policy``, ``rl`` the whole gated set. Results go to
+``hybrid_simplex_zero_policy``, ``rl`` the whole gated set; ``dynamics`` adds ``bench_dynamics``' loop
+(actuator + RK4 of 4,096 randomized aircraft, ``--steps`` steps per call). Results go to
 ``benchmarks/results/ab_step_<machine>.json``.
 """
 
@@ -23,6 +24,7 @@ import importlib
 import os
 import statistics
 import sys
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,6 +34,8 @@ os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=1")
 from benchmarks.common import best_us_per_step, load_average_1min, machine_name, result_header, write_json  # noqa: E402
 
 GATED_KINDS = ("hybrid_gated", "hybrid_simplex", "hybrid_simplex_zero_policy", "rl")
+#: Aircraft in the ``dynamics`` kind's loop (``bench_dynamics --quick``'s largest batch).
+DYNAMICS_BATCH = 4096
 
 
 def build_tree(tree: Path, kinds: list[str], batch: int, n_steps: int, policy: str | None = None) -> dict:
@@ -53,7 +57,27 @@ def build_tree(tree: Path, kinds: list[str], batch: int, n_steps: int, policy: s
         )
     finally:
         sys.path.remove(str(tree))
-    return {k: built[k] for k in ["plant", *kinds]}
+    out = {k: built[k] for k in ["plant", *kinds] if k != "dynamics"}
+    if "dynamics" in kinds:
+        out["dynamics"] = build_dynamics(tree, n_steps)
+    return out
+
+
+def build_dynamics(tree: Path, n_steps: int, batch: int = DYNAMICS_BATCH) -> dict:
+    """``tree``'s ``bench_dynamics`` loop of ``batch`` aircraft, compiled with the loaded modules."""
+    import jax.numpy as jnp
+
+    sys.path.insert(0, str(tree))
+    try:
+        bench_dynamics = importlib.import_module("benchmarks.bench_dynamics")
+        if not Path(bench_dynamics.__file__).resolve().is_relative_to(tree):
+            raise SystemExit(f"--trees: {tree} has no benchmarks/bench_dynamics.py of its own")
+        args = bench_dynamics.make_fleet(0, batch, jnp.float32)
+        t0 = time.perf_counter()
+        compiled = bench_dynamics.make_fly(n_steps).lower(*args).compile()
+        return {"compiled": compiled, "args": args, "compile_s": time.perf_counter() - t0}
+    finally:
+        sys.path.remove(str(tree))
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -73,7 +97,7 @@ def main(argv: list[str] | None = None) -> dict:
     args = ap.parse_args(argv)
     trees = [Path(t).resolve() for t in args.trees.split(",")]
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
-    allowed = ("smc", "hybrid", *GATED_KINDS)
+    allowed = ("smc", "hybrid", *GATED_KINDS, "dynamics")
     bad = [k for k in kinds if k not in allowed]
     if len(trees) != 2 or bad or "smc" not in kinds:
         ap.error(f"--trees needs two trees and --kinds smc plus any of {', '.join(allowed[1:])} (got {bad})")
@@ -102,7 +126,7 @@ def main(argv: list[str] | None = None) -> dict:
                 k: [per_copy[(tree, c, k)] for c in range(args.copies)] for k in ["plant", *kinds]
             },
             "compile_s": {k: built[(tree, 0, k)]["compile_s"] for k in ["plant", *kinds]},
-            "over_smc": {k: us[(tree, k)] / us[(tree, "smc")] for k in kinds if k != "smc"},
+            "over_smc": {k: us[(tree, k)] / us[(tree, "smc")] for k in kinds if k not in ("smc", "dynamics")},
         }
         print(label, {k: round(v, 1) for k, v in rows[label]["us_per_step"].items()}, flush=True)
     speedup = {k: us[(trees[0], k)] / us[(trees[1], k)] for k in ["plant", *kinds]}
