@@ -2,15 +2,19 @@
 
     python experiments/hybrid_gated/table.py experiments/hybrid_gated/results
 
-Reads ``mc_<controller>_<policy>_<condition>_<runs>.json`` (``harv-jax mc`` summaries) and
-``spin_*.json`` (``harv-jax fly`` metrics) from the folder and prints the tables.
+Reads the entries ``mc_<controller>_<policy>_<condition>_<runs>.json`` (``harv-jax mc`` summaries) and
+``spin_*.json`` (``harv-jax fly`` metrics) of the folder's ``summaries.json``
+(``experiments/results_bundle.py``) and prints the tables.
 """
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import results_bundle  # noqa: E402
 
 POLICIES = ("partial", "full", "zero", "random", "bang-bang")
 
@@ -26,17 +30,17 @@ def mc_rows(folder: Path) -> list[str]:
         "| certificate sat. α/β/μ | sat. steps |",
         "|---|---:|---|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---|---|---:|",
     ]
+    files = results_bundle.load(folder / "summaries.json")
     for cond in ("nominal", "randomized"):
         for n in (1000, 256):
-            smc = folder / f"mc_smc_{cond}_{n}.json"
-            entries = [("–", "smc", smc)] if smc.is_file() else []
+            entries = [("–", "smc", f"mc_smc_{cond}_{n}.json")]
             for p in POLICIES:
                 for z in ("gated", "continuous"):
-                    entries.append((p, f"hybrid/{z}", folder / f"mc_{z}_{p}_{cond}_{n}.json"))
-            for pol, ctrl, path in entries:
-                if not path.is_file():
+                    entries.append((p, f"hybrid/{z}", f"mc_{z}_{p}_{cond}_{n}.json"))
+            for pol, ctrl, key in entries:
+                if key not in files:
                     continue
-                d = json.loads(path.read_text())
+                d = files[key]
                 v = next(iter(d["controllers"].values()))
                 h, t = v["hybrid"], v["recovery_time_s"]
                 cert = h.get("certificate")
@@ -63,11 +67,9 @@ def mc_rows(folder: Path) -> list[str]:
 def spin_rows(folder: Path) -> list[str]:
     out = ["| policy | controller | recovered | t_rec after engagement s | TV rad | altitude loss ft |",
            "|---|---|---:|---:|---:|---:|"]  # fmt: skip
-    paths = sorted(folder.glob("spin_*.json"))
-    for path in paths:
-        d = json.loads(path.read_text())
+    for key, d in results_bundle.select(folder / "summaries.json", "spin_*.json").items():
         m = d["metrics"]
-        name = path.stem.removeprefix("spin_")
+        name = key.removesuffix(".json").removeprefix("spin_")
         ctrl, _, pol = name.partition("_")
         tv = m.get("control_tv_rad")
         tv = sum(tv) if isinstance(tv, list) else tv

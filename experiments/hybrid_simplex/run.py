@@ -3,8 +3,9 @@
     python experiments/hybrid_simplex/run.py --out experiments/hybrid_simplex/results \\
         --policy recovery=shipped:recovery --policy partial=shipped:paper-partial --fixtures [--runs 1000]
 
-Writes ``mc_<zeta>_<policy>_<condition>.json`` (``harv-jax mc`` summaries of the hybrid with ``--zeta``,
-RL-only for trained policies, the SMC with the first policy; all on the same runs) and
+Writes into ``<out>/summaries.json`` (``experiments/results_bundle.py``) the entries
+``mc_<zeta>_<policy>_<condition>.json`` (``harv-jax mc`` summaries of the hybrid with ``--zeta``, RL-only
+for trained policies, the SMC with the first policy; all on the same runs) and
 ``spin_<controller>_<policy>.json`` (``harv-jax fly --scenario spin`` metrics).
 ``--fixtures`` adds the zero, random and bang-bang test fixtures (``tests/policy_fixtures.py``; not shipped).
 """
@@ -12,6 +13,7 @@ RL-only for trained policies, the SMC with the first policy; all on the same run
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import subprocess
 import sys
@@ -19,6 +21,9 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "experiments"))
+
+import results_bundle  # noqa: E402
 
 
 def _cli(*args: str) -> None:
@@ -53,13 +58,16 @@ def main() -> None:
             rand = "--randomize" if cond == "randomized" else "--no-randomize"
             _cli("mc", "--controller", ctrls, "--zeta", a.zeta, "--policy", spec, "--runs",
                  str(a.runs), "--seed", str(a.seed), rand, "--out", str(work), "--force")  # fmt: skip
-            shutil.copy(work / "summary.json", a.out / f"mc_{a.zeta}_{name}_{cond}.json")
+            doc = json.loads((work / "summary.json").read_text())
+            results_bundle.add(a.out / "summaries.json", f"mc_{a.zeta}_{name}_{cond}.json", doc)
         if a.no_spin:
             continue
         for ctrl in ("rl", "hybrid"):
             _cli("fly", "--scenario", "spin", "--controller", ctrl, "--zeta", a.zeta, "--policy", spec,
                  "--out", str(work), "--force")  # fmt: skip
-            shutil.copy(work / "metrics.json", a.out / f"spin_{ctrl if ctrl == 'rl' else a.zeta}_{name}.json")
+            doc = json.loads((work / "metrics.json").read_text())
+            key = f"spin_{ctrl if ctrl == 'rl' else a.zeta}_{name}.json"
+            results_bundle.add(a.out / "summaries.json", key, doc)
     shutil.rmtree(tmp, ignore_errors=True)
 
 

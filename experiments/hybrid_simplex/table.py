@@ -2,15 +2,19 @@
 
     python experiments/hybrid_simplex/table.py experiments/hybrid_simplex/results
 
-Reads the ``mc_<zeta>_<policy>_<condition>.json`` and ``spin_<controller>_<policy>.json`` files written by
-``run.py`` and prints one row per controller and policy, with the SMC's row of the same runs first.
+Reads the ``mc_<zeta>_<policy>_<condition>.json`` and ``spin_<controller>_<policy>.json`` entries that
+``run.py`` wrote into ``<folder>/summaries.json`` and prints one row per controller and policy, with the
+SMC's row of the same runs first.
 """
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import results_bundle  # noqa: E402
 
 
 def _f(v, fmt: str) -> str:
@@ -24,12 +28,11 @@ def mc_rows(folder: Path) -> list[str]:
         "|---|---|---|---:|---:|---:|---:|---:|---:|---|",
     ]
     for cond in ("nominal", "randomized"):
-        files = sorted(folder.glob(f"mc_*_{cond}.json"))
         smc_p50 = None
         rows = []
-        for path in files:
-            d = json.loads(path.read_text())
-            zeta, policy = path.stem.split("_", 2)[1], path.stem.split("_", 2)[2].rsplit("_", 1)[0]
+        for key, d in results_bundle.select(folder / "summaries.json", f"mc_*_{cond}.json").items():
+            stem = key.removesuffix(".json")
+            zeta, policy = stem.split("_", 2)[1], stem.split("_", 2)[2].rsplit("_", 1)[0]
             for ctrl, v in d["controllers"].items():
                 t = v["recovery_time_s"]
                 if ctrl == "smc":
@@ -52,9 +55,8 @@ def mc_rows(folder: Path) -> list[str]:
 
 def spin_rows(folder: Path) -> list[str]:
     out = ["| policy | controller | outcome | recovered after s | TV rad |", "|---|---|---|---:|---:|"]
-    for path in sorted(folder.glob("spin_*.json")):
-        ctrl, policy = path.stem.split("_", 2)[1:]
-        m = json.loads(path.read_text())
+    for key, m in results_bundle.select(folder / "summaries.json", "spin_*.json").items():
+        ctrl, policy = key.removesuffix(".json").split("_", 2)[1:]
         metrics = m.get("metrics", m)
         tv = metrics.get("control_tv_rad")
         tv = sum(tv) if isinstance(tv, list) else tv

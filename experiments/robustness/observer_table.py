@@ -2,18 +2,22 @@
 
     python experiments/robustness/observer_table.py
 
-Reads ``results/mc_observer_{clean,nogust,noise3}/summary.json``, the same conditions of the 0.15 Hz
-observer, ``results/mc_observer015_*``, of ``smc-brake-zoom``, ``results/mc_observer_zoom_*``, and of the
-extended-state observer, ``results/mc_eso_*`` (``harv-jax
-mc`` with the commands in the README) and prints, per
+Reads the entries ``mc_observer_{clean,nogust,noise3}/summary.json`` of ``results/summaries.json``
+(``experiments/results_bundle.py``), the same conditions of the 0.15 Hz observer, ``mc_observer015_*``, of
+``smc-brake-zoom``, ``mc_observer_zoom_*``, and of the extended-state observer, ``mc_eso_*`` (``harv-jax
+mc`` with the commands in the README, under the folder each wrote) and prints, per
 controller and condition, recovered share, mean recovery time (not recovered at the run length), control TV
 and chatter index, and TV and chatter against the same controller's clean run.
 """
 
 from __future__ import annotations
 
-import json
+import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import results_bundle  # noqa: E402
 
 RESULTS = Path(__file__).parent / "results"
 CONDITIONS = (("clean", "clean"), ("noise, delay, model, lag", "nogust"), ("noise 3x", "noise3"))
@@ -30,9 +34,8 @@ def main() -> None:
 
 def rows(prefix: str) -> None:
     """Print the table rows of one set of result folders."""
-    runs = {
-        label: json.loads((RESULTS / f"{prefix}_{d}" / "summary.json").read_text()) for label, d in CONDITIONS
-    }
+    files = results_bundle.load(RESULTS / "summaries.json")
+    runs = {label: files[f"{prefix}_{d}/summary.json"] for label, d in CONDITIONS}
     clean = runs["clean"]["controllers"]
     for name, c0 in clean.items():
         for label, _ in CONDITIONS:
