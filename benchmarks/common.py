@@ -8,6 +8,9 @@ import re
 from pathlib import Path
 from typing import Any
 
+from harv_jax.machine import cpu_model as cpu_name
+from harv_jax.machine import simd_level
+
 
 def cpu_cores() -> int:
     """CPU cores this process may run on (its affinity; all cores where affinity is unknown)."""
@@ -27,18 +30,9 @@ def load_average_1min() -> float | None:
 
 
 def cpu_model() -> str:
-    """The CPU model (``/proc/cpuinfo`` on Linux, else ``platform.processor()``) and its SIMD level."""
-    import platform
-
-    name, flags = platform.processor() or "unknown", ""
-    try:
-        text = Path("/proc/cpuinfo").read_text()
-        name = re.search(r"^model name\s*:\s*(.+)$", text, re.M).group(1).strip()
-        flags = re.search(r"^flags\s*:\s*(.+)$", text, re.M).group(1)
-    except (OSError, AttributeError):
-        pass
-    simd = "avx512f" if " avx512f" in flags else "avx2" if " avx2" in flags else ""
-    return f"{name} ({simd})" if simd else name
+    """The CPU model and its SIMD level (``harv_jax.machine``), as the benchmark JSONs record it."""
+    simd = simd_level()
+    return f"{cpu_name()} ({simd})" if simd else cpu_name()
 
 
 def write_json(out_dir: Path, file_name: str, result: dict[str, Any]) -> Path:

@@ -96,6 +96,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     (
         "harv_jax.units",
         "harv_jax.errors",
+        "harv_jax.machine",
         "harv_jax.guards",
         "harv_jax.numfmt",
         "harv_jax.outdir",

@@ -21,7 +21,7 @@ import sys
 import time
 from pathlib import Path
 
-from harv_jax.optimal.outputs import cpu_model
+from harv_jax.machine import cpu_model
 
 #: The modules the commands import inside their functions (they pull optax or matplotlib), by command.
 HEAVY = {

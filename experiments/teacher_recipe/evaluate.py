@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import time
 from pathlib import Path
 from typing import Any
@@ -33,6 +32,7 @@ from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec
 from harv_jax.evaluation.montecarlo.paired import mean_nr_at_run_s, paired_vs_reference, times_nr_at_run_s
 from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs
 from harv_jax.evaluation.seed_stats import iqm_ci
+from harv_jax.machine import cpu_model
 from harv_jax.task.spec import ALPHA_TARGET_RAD
 
 DURATION_S = 60.0
@@ -41,13 +41,6 @@ N_STEPS = 6000
 REF = jnp.asarray([ALPHA_TARGET_RAD, 0.0, 0.0])
 #: The model-based controllers every policy is compared with, the SMC first.
 BASELINES = ("smc", "smc-brake", "smc-brake-zoom")
-
-
-def cpu_model() -> str:
-    for line in Path("/proc/cpuinfo").read_text().splitlines():
-        if line.startswith("model name"):
-            return line.split(":", 1)[1].strip()
-    return platform.processor() or "unknown"
 
 
 def _key(name: str) -> str:

@@ -18,11 +18,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+from harv_jax.machine import cpu_model
 
 PROGRAM = """
 import sys
@@ -36,13 +37,6 @@ def qrs(key):
 for i in range(300):
     jax.block_until_ready(qrs(jax.random.key(i)))
 """
-
-
-def cpu_model() -> str:
-    for line in Path("/proc/cpuinfo").read_text().splitlines():
-        if line.startswith("model name"):
-            return line.split(":", 1)[1].strip()
-    return platform.processor() or "unknown"
 
 
 def attempt(batch: int, timeout_s: float) -> dict:

@@ -36,19 +36,10 @@ import time
 from pathlib import Path
 from typing import Any
 
+from harv_jax.machine import cpu_model
+
 REPO = Path(__file__).resolve().parents[2]
 HERE = Path(__file__).resolve().parent
-
-
-def cpu_model() -> str:
-    """The first ``model name`` of /proc/cpuinfo (or the platform's processor string)."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def cores() -> int:

@@ -4,7 +4,6 @@ the figures and, if asked, the demonstrations."""
 from __future__ import annotations
 
 import csv
-import platform
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +11,7 @@ import numpy as np
 
 from harv_jax import atomic
 from harv_jax.evaluation.montecarlo.paired import times_nr_at_run_s
+from harv_jax.machine import cpu_model
 from harv_jax.optimal.search import SearchConfig
 from harv_jax.optimal.study import OPTIMAL, OptimalStudy
 from harv_jax.task.spec import DT_S, H0_FT
@@ -23,17 +23,6 @@ CONTROL_CLASS = (
     "the last knot), braking on or off per run by the warm start; per run the better of that and the best "
     "registry controller"
 )
-
-
-def cpu_model() -> str:
-    """The CPU's model name (``/proc/cpuinfo``; ``platform.processor()`` elsewhere)."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def _times(study: OptimalStudy, run_s: float) -> dict[str, np.ndarray]:

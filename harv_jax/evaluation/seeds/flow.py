@@ -21,7 +21,7 @@ from harv_jax.evaluation.seeds.conditions import (
     write_cell,
 )
 from harv_jax.evaluation.seeds.report import build_document, figure, markdown
-from harv_jax.optimal.outputs import cpu_model
+from harv_jax.machine import cpu_model
 
 
 def load_policies(files: list[Path]) -> list[Any]:
