@@ -27,6 +27,7 @@ import numpy as np
 from flax import struct
 
 from harv_jax.aircraft.randomize import uniform16
+from harv_jax.dynamics.disturbance_model import Models
 from harv_jax.dynamics.turbulence import TurbulenceParams
 
 #: The training env's default maxima (``env.config.default_randomization_params``; the env draws each
@@ -60,6 +61,8 @@ class DisturbanceParams:
         gust_tau_s: gust correlation time, s.
         turbulence: Dryden turbulence (``dynamics.turbulence``), or None (none: the loop has no
             turbulence state and draws nothing for it).
+        added_levels: name -> level of each disturbance added to the table (``dynamics.disturbance_model``).
+        added_models: name -> model of those (static; empty: none added).
     """
 
     noise_std: jnp.ndarray
@@ -67,6 +70,8 @@ class DisturbanceParams:
     gust_std_fps: jnp.ndarray
     gust_tau_s: jnp.ndarray
     turbulence: TurbulenceParams | None = None
+    added_levels: dict[str, jnp.ndarray] = struct.field(default_factory=dict)
+    added_models: Models = struct.field(pytree_node=False, default=())
 
 
 def normals_from_uniform(u01: jnp.ndarray) -> jnp.ndarray:

@@ -22,13 +22,14 @@ start of the step.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 from flax import struct
 
 from harv_jax.aircraft.params import AircraftParams
+from harv_jax.dynamics import disturbance_model as dm
 from harv_jax.dynamics import disturbances as dist
 from harv_jax.dynamics import turbulence as turb
 from harv_jax.dynamics.plant import PlantStep, plant_step
@@ -50,6 +51,7 @@ class DisturbanceState:
             measurement is the air data).
         turbulence: the Dryden filter states, or None (no turbulence).
         heading0_rad: the turbulence frame's heading (the initial one), rad.
+        added: name -> state of each disturbance added to the table (``dynamics.disturbance_model``).
     """
 
     cmd_buffer_rad: jnp.ndarray
@@ -57,6 +59,7 @@ class DisturbanceState:
     noise_normals: jnp.ndarray | None
     turbulence: turb.TurbulenceState | None
     heading0_rad: jnp.ndarray
+    added: dict[str, Any] = struct.field(default_factory=dict)
 
 
 class AirData(NamedTuple):
@@ -82,13 +85,19 @@ def air_relative(body: BodyState, wind_fps: jnp.ndarray) -> jnp.ndarray:
 
 def air_data(body: BodyState, state: DisturbanceState, levels: dist.DisturbanceParams) -> AirData:
     """The air data of ``body`` in the gust and turbulence of ``state``."""
-    wind, pqr = state.gust_fps, None
+    wind, pqr = added_wind(state, levels), None
     if levels.turbulence is not None:
         uvw, p = turb.turbulence_velocity(state.turbulence, levels.turbulence, body.pos_ft[2])
         ned = turb.turbulence_ned(uvw, state.heading0_rad)
         wind = wind + turb.body_from_ned(quat_to_dcm(body.quat), ned)
         pqr = jnp.stack([p, jnp.zeros_like(p), jnp.zeros_like(p)])
     return AirData(air_relative(body, wind), wind, pqr)
+
+
+def added_wind(state: DisturbanceState, levels: dist.DisturbanceParams) -> jnp.ndarray:
+    """[3] the body-axis gust plus the air velocity of the disturbances added to the table, ft/s."""
+    added = dm.added_wind_fps(levels.added_models, state.added, levels.added_levels)
+    return state.gust_fps if added is None else state.gust_fps + added
 
 
 def sensor_noise(state: DisturbanceState, levels: dist.DisturbanceParams) -> jnp.ndarray | None:
@@ -99,9 +108,11 @@ def sensor_noise(state: DisturbanceState, levels: dist.DisturbanceParams) -> jnp
 
 
 def measured(x_wind: jnp.ndarray, state: DisturbanceState, levels: dist.DisturbanceParams) -> jnp.ndarray:
-    """The wind state [10] as the sensors report it (``x_wind`` plus the state's noise, if any)."""
+    """The wind state [10] as the sensors report it (``x_wind`` plus the state's noise, if any, then the
+    disturbances added to the table)."""
     noise = sensor_noise(state, levels)
-    return x_wind if noise is None else dist.measured(x_wind, noise)
+    y = x_wind if noise is None else dist.measured(x_wind, noise)
+    return dm.measure(levels.added_models, y, state.added, levels.added_levels)
 
 
 def _turbulence_normals(key: jax.Array, dtype) -> jnp.ndarray:
@@ -128,7 +139,8 @@ def disturbance_init(
         delta0_rad: [3] deflections at engagement.
         heading0_rad: heading at engagement (the turbulence frame's), rad.
         max_delay_steps: static FIFO size minus one.
-        turbulence_key: the key of the initial turbulence draws (required with turbulence).
+        turbulence_key: the key of the initial turbulence draws (required with turbulence) and of the
+            added disturbances' (``dynamics.disturbance_model``).
     """
     dtype = delta0_rad.dtype
     buffer = jnp.broadcast_to(delta0_rad, (max_delay_steps + 1, 3))
@@ -141,7 +153,8 @@ def disturbance_init(
         if turbulence_key is None:
             raise ValueError("disturbance_init: turbulence needs a turbulence_key")
         tstate = turb.turbulence_init(_turbulence_normals(turbulence_key, dtype))
-    return DisturbanceState(buffer, gust, noise, tstate, jnp.asarray(heading0_rad, dtype))
+    added = dm.init_states(levels.added_models, levels.added_levels, turbulence_key)
+    return DisturbanceState(buffer, gust, noise, tstate, jnp.asarray(heading0_rad, dtype), added)
 
 
 def initial_heading(body: BodyState) -> jnp.ndarray:
@@ -183,7 +196,8 @@ def disturbed_plant_step(
         aircraft: the plant's aircraft.
         levels: the disturbance levels (``levels.delay_steps`` within the FIFO).
         dt_s: step, s.
-        key: the step's disturbance key (None: nothing drawn, gust and noise held; needs no turbulence).
+        key: the step's disturbance key (None: nothing drawn, gust, noise and the added disturbances held;
+            needs no turbulence).
 
     Returns:
         DisturbedStep(plant step, disturbances at k + 1).
@@ -205,6 +219,10 @@ def disturbed_plant_step(
     if levels.turbulence is not None:
         n6 = _turbulence_normals(key, dtype)
         tstate = turb.turbulence_step(tstate, levels.turbulence, body.pos_ft[2], vt_fps(air.x_wind), dt_s, n6)
+    added = dm.step_states(levels.added_models, state.added, levels.added_levels, key, dt_s)
     return DisturbedStep(
-        ps, state.replace(cmd_buffer_rad=buffer, gust_fps=gust, noise_normals=noise, turbulence=tstate)
+        ps,
+        state.replace(
+            cmd_buffer_rad=buffer, gust_fps=gust, noise_normals=noise, turbulence=tstate, added=added
+        ),
     )

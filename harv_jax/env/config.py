@@ -129,6 +129,9 @@ class RandomizationParams(AircraftRandomization):
             sigma); each episode flies U(0, 1) times it (default 0: none). Only flown when
             ``EnvConfig.turbulence`` is on.
         turbulence_wind_20ft_fps: the same for the low-altitude model's wind at 20 ft, ft/s.
+        added_max: name -> per-episode maximum of each disturbance added to the table (its
+            ``[randomization]`` key; ``dynamics.disturbance_model``); each episode flies U(0, 1) times it
+            (default: none).
     """
 
     gust_on: jnp.ndarray
@@ -142,6 +145,7 @@ class RandomizationParams(AircraftRandomization):
     lag_max_s: jnp.ndarray
     turbulence_sigma_table_fps: jnp.ndarray
     turbulence_wind_20ft_fps: jnp.ndarray
+    added_max: dict[str, jnp.ndarray] = struct.field(default_factory=dict)
 
 
 def default_randomization_params(enabled: bool = True, dtype=None) -> RandomizationParams:

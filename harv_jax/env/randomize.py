@@ -16,6 +16,7 @@ Draws (``RandomizationParams`` holds the switches and ranges; defaults documente
 | actuator delay, steps       | randint(0, delay_max_steps) inclusive, capped             |
 | actuator lag, s             | U(0, lag_max_s) (its own key: `extra_from_uniform`)        |
 | turbulence sigma            | U(0, 1) turbulence table (its own key; with turbulence)   |
+| an added disturbance's level| U(0, its `[randomization]` maximum) (a key of its own)     |
 
 The env draws all of these from 16-bit uniforms (``uniform16``: two per PRNG word, resolution 1/65536).
 The aircraft groups and ranges are documented in ``harv_jax.aircraft.randomize``.
@@ -40,9 +41,11 @@ from harv_jax.aircraft.randomize import (
     uniform16,
 )
 from harv_jax.dynamics import disturbances
+from harv_jax.dynamics.disturbance_model import Models, model_key
 from harv_jax.dynamics.disturbances import DisturbanceParams
 from harv_jax.dynamics.turbulence import TurbulenceParams
 from harv_jax.env.config import RandomizationParams
+from harv_jax.task.disturbance_table import added_models
 from harv_jax.task.spaces import NUM_MEASURED
 
 
@@ -57,6 +60,8 @@ class EpisodeParams:
         gust_tau_s: gust correlation time, s.
         noise_std: [8] sensor-noise std of [V, alpha, beta, p, q, r, mu, gamma] (ft/s, rad, rad/s).
         turbulence: the episode's Dryden turbulence, or None (``EnvConfig.turbulence`` off).
+        added_levels: name -> the episode's level of each disturbance added to the table.
+        added_models: their models (static; ``dynamics.disturbance_model``).
     """
 
     aircraft: AircraftParams
@@ -65,12 +70,20 @@ class EpisodeParams:
     gust_tau_s: jnp.ndarray
     noise_std: jnp.ndarray
     turbulence: TurbulenceParams | None = None
+    added_levels: dict[str, jnp.ndarray] = struct.field(default_factory=dict)
+    added_models: Models = struct.field(pytree_node=False, default=())
 
     @property
     def levels(self) -> DisturbanceParams:
         """The episode's disturbance levels as the disturbed step reads them."""
         return DisturbanceParams(
-            self.noise_std, self.delay_steps, self.gust_std_fps, self.gust_tau_s, self.turbulence
+            self.noise_std,
+            self.delay_steps,
+            self.gust_std_fps,
+            self.gust_tau_s,
+            self.turbulence,
+            self.added_levels,
+            self.added_models,
         )
 
 
@@ -158,6 +171,23 @@ def extra_from_uniform(
             rand.turbulence_sigma_table_fps * u01[1], rand.turbulence_wind_20ft_fps * u01[1], ac.b
         )
     return episode.replace(aircraft=ac, turbulence=tp)
+
+
+#: Folded into a reset's key for the draws of the disturbances added to the table (each then folds its name).
+ADDED_KEY_TAG = 0x41444444  # "ADDD"
+
+
+def added_from_key(key: jax.Array, episode: EpisodeParams, rand: RandomizationParams) -> EpisodeParams:
+    """``episode`` with the level of each disturbance added to the table: U(0, 1) times its
+    ``[randomization]`` maximum (``rand.added_max``; none: ``episode`` unchanged, nothing drawn)."""
+    if not rand.added_max:
+        return episode
+    dtype = episode.gust_std_fps.dtype
+    levels = {
+        name: (top * uniform16(model_key(key, name), 2, dtype)[0]).astype(dtype)
+        for name, top in rand.added_max.items()
+    }
+    return episode.replace(added_levels=levels, added_models=added_models(list(levels)))
 
 
 #: Box-Muller normals from uniforms (the one implementation: ``dynamics.disturbances``).

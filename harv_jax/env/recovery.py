@@ -57,10 +57,11 @@ import jax.numpy as jnp
 from flax import struct
 
 from harv_jax.aircraft.aero import wrap_angle_rad
-from harv_jax.dynamics import BodyState, from_wind, is_finite
+from harv_jax.dynamics import BodyState, disturbance_model, from_wind, is_finite
 from harv_jax.dynamics.disturbed_step import (
     AirData,
     DisturbanceState,
+    added_wind,
     air_data,
     disturbance_init,
     disturbed_plant_step,
@@ -202,6 +203,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
         return _wrap_angles(x0), delta0
 
     def _observe(dist: DisturbanceState, x_wind: jnp.ndarray, target_rad: jnp.ndarray, ep: EpisodeParams):
+        x_wind = disturbance_model.measure(ep.added_models, x_wind, dist.added, ep.added_levels)
         obs = clean_observation(x_wind, target_rad)
         if dist.noise_normals is not None:
             obs = obs.at[:NUM_MEASURED].add(randomize.sensor_noise(dist.noise_normals, ep))
@@ -239,6 +241,8 @@ def make_env(config: EnvConfig | None = None) -> Env:
             extra_key = jax.random.fold_in(key, randomize.EXTRA_KEY_TAG)
             extra_u = randomize.uniform16(extra_key, randomize.NUM_EXTRA_UNIFORMS, dtype)
             ep = randomize.extra_from_uniform(extra_u, ep, params.randomization, turbulence)
+            added_key = jax.random.fold_in(key, randomize.ADDED_KEY_TAG)
+            ep = randomize.added_from_key(added_key, ep, params.randomization)
             normals = randomize.normals_from_uniform(u01[n_init_u + n_ep :])
         else:
             ep = randomize.nominal_episode(params.aircraft, params.randomization)
@@ -288,7 +292,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
         if turbulence:
             air = air_data(state.aircraft, dist, levels)
         else:  # the paper's env: the aircraft flies the gust, the env sees the inertial state
-            air = AirData(state.wind, dist.gust_fps, None)
+            air = AirData(state.wind, added_wind(dist, levels), None)
         ps, dist = disturbed_plant_step(
             state.aircraft, state.delta_rad, dist, cmd, air, ac, levels, dt_s, key if dr else None
         )

@@ -47,7 +47,7 @@ from harv_jax.env.config import (
 from harv_jax.env.reward_params import RewardParams, reward_fields
 from harv_jax.errors import UsageError
 from harv_jax.guards import check_seed
-from harv_jax.task.disturbance_table import BY_NAME
+from harv_jax.task.disturbance_table import ADDED_NAMES, BY_NAME
 
 #: Nested tables of the env settings and what they hold.
 TABLES = ("reward", "randomization", "spin", "eval")
@@ -84,7 +84,10 @@ RANDOMIZATION_RANGES: dict[str, tuple[float, float]] = {
     "gust_tau_max_s": (0.01, 100.0),
     "delay_max_steps": (0.0, 100.0),
     "lag_max_s": (0.0, BY_NAME["lag"].max_level),
+    **{BY_NAME[n].randomization[0]: (0.0, BY_NAME[n].max_level) for n in ADDED_NAMES},
 }
+#: The ``[randomization]`` key of each disturbance added to the table -> its name.
+_ADDED_KEYS = {BY_NAME[n].randomization[0]: n for n in ADDED_NAMES}
 #: ``[randomization]`` fields that no table sets directly (``turbulence`` sets them).
 _TURBULENCE_FIELDS = ("turbulence_sigma_table_fps", "turbulence_wind_20ft_fps")
 #: ``EnvConfig`` fields the settings derive (not ``[env]`` keys): the turbulence switch.
@@ -208,8 +211,9 @@ _GUST_TAU_DEFAULTS = dict(zip(("gust_tau_min_s", "gust_tau_max_s"), DEFAULT_GUST
 def check_randomization_table(table: dict[str, Any] | None) -> None:
     """Raise UsageError for an unknown key, a non-bool switch or a range outside
     `RANDOMIZATION_RANGES` of a ``[randomization]`` table."""
-    fields = [f.name for f in dataclasses.fields(RandomizationParams) if f.name not in _TURBULENCE_FIELDS]
-    fields.append("turbulence")
+    skip = (*_TURBULENCE_FIELDS, "added_max")
+    fields = [f.name for f in dataclasses.fields(RandomizationParams) if f.name not in skip]
+    fields += ["turbulence", *_ADDED_KEYS]
     n_noise = len(DEFAULT_NOISE_STD_MAX)
     for k, v in (table or {}).items():
         if k not in fields:
@@ -271,6 +275,11 @@ def randomization_params(table: dict[str, Any] | None, base: RandomizationParams
                 base.turbulence_sigma_table_fps.dtype
             )
             changes["turbulence_wind_20ft_fps"] = tp.wind_20ft_fps.astype(base.turbulence_wind_20ft_fps.dtype)
+            continue
+        if k in _ADDED_KEYS:
+            added = {**base.added_max, **changes.get("added_max", {})}
+            added[_ADDED_KEYS[k]] = jnp.asarray(v, dtype=base.gust_std_max_fps.dtype)
+            changes["added_max"] = {n: added[n] for n in ADDED_NAMES if n in added}  # the table's order
             continue
         old = getattr(base, k)
         changes[k] = jnp.asarray(v, dtype=old.dtype).reshape(old.shape)

@@ -30,6 +30,7 @@ from harv_jax.evaluation.montecarlo.disturbances import (
 )
 from harv_jax.evaluation.montecarlo.rollout import run_mc, sample_mc_inputs, with_full_structure
 from harv_jax.evaluation.summary import summarize_controller
+from harv_jax.task.disturbance_table import ADDED_NAMES, BY_NAME
 from harv_jax.task.spec import ALPHA_TARGET_RAD, DT_S
 
 if TYPE_CHECKING:
@@ -43,6 +44,7 @@ SWEEP_LEVELS: dict[str, tuple[float, ...]] = {
     "model": (0.0, 0.5, 1.0, 1.5, 2.0),
     "lag": (0.0, 0.03, 0.06, 0.1, 0.2),
     "turbulence": (0.0, 2.5, 5.0, 7.5, 10.0, 15.0, 20.0),
+    **{name: BY_NAME[name].sweep for name in ADDED_NAMES},
 }
 #: What a sweep can vary: the disturbances and the Dryden turbulence's sigma (ft/s at every altitude above
 #: 2000 ft; 0: still air, scored by the still-air criterion, any other level by the criterion in turbulence).
@@ -168,6 +170,8 @@ def robustness_sweep(
         for level in lv:
             if name == "turbulence":
                 spec = DisturbanceSpec(turbulence=parse_turbulence(f"{float(level):g}"))
+            elif name in ADDED_NAMES:
+                spec = DisturbanceSpec(added=((name, float(level)),), turbulence=turbulence)
             else:
                 spec = DisturbanceSpec(**{_FIELD[name]: float(level)}, turbulence=turbulence)
             inputs = sample_mc_inputs(jax.random.key(seed), runs, nominal, disturbances=spec)

@@ -9,12 +9,18 @@ of the Monte Carlo commands, the ranges of the new ``[randomization]`` keys and 
 The models are ``harv_jax.dynamics.disturbances`` (noise, delay, gust), ``harv_jax.dynamics.turbulence``
 (Dryden turbulence), ``harv_jax.aircraft.randomize`` (model error) and ``AircraftParams.act_tau_s`` (lag);
 ``harv_jax.dynamics.disturbed_step`` flies them, in the env and in the Monte Carlo alike.
+
+A row with a ``model`` (``harv_jax.dynamics.disturbance_model``) adds a disturbance to these: its
+``--disturbances`` name and level option, its ``runs.csv`` column, its sweep in ``harv-jax robustness``, its
+``[randomization]`` key (the env's per-episode maximum) and its flight in the disturbed step follow from the
+row (``docs/robustness.md``, "Adding a disturbance").
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from harv_jax.dynamics.disturbance_model import DisturbanceModel, Models
 from harv_jax.dynamics.disturbances import DEFAULT_DELAY_MAX_STEPS, DEFAULT_GUST_STD_MAX_FPS
 from harv_jax.task.spec import DT_S
 
@@ -32,6 +38,9 @@ class Disturbance:
         randomization: the ``[randomization]`` keys that set the env's per-episode maximum.
         meaning: what it is, in one sentence.
         in_default: whether ``--disturbances default`` turns it on.
+        model: for a disturbance added to the built-in ones, its model (``dynamics.disturbance_model``;
+            its one ``randomization`` key is the env's per-episode maximum, drawn U(0, 1) times it).
+        sweep: for an added disturbance, the levels ``harv-jax robustness`` sweeps by default.
     """
 
     name: str
@@ -42,6 +51,8 @@ class Disturbance:
     randomization: tuple[str, ...]
     meaning: str
     in_default: bool = True
+    model: DisturbanceModel | None = None
+    sweep: tuple[float, ...] = ()
 
     @property
     def parameter(self) -> str:
@@ -119,6 +130,18 @@ DISTURBANCES: tuple[Disturbance, ...] = (
 
 #: The rows by name.
 BY_NAME: dict[str, Disturbance] = {d.name: d for d in DISTURBANCES}
+#: The disturbances added to the built-in ones (a row with a model), in the table's order.
+ADDED_NAMES: tuple[str, ...] = tuple(d.name for d in DISTURBANCES if d.model is not None)
+for _d in DISTURBANCES:
+    if _d.model is not None and (len(_d.randomization) != 1 or not _d.sweep):
+        raise ValueError(f"disturbance {_d.name!r}: a model needs one [randomization] key, sweep levels")
+
+
+def added_models(names) -> Models:
+    """The models of the added disturbances among ``names``, in the table's order."""
+    return tuple((n, BY_NAME[n].model) for n in ADDED_NAMES if n in names)
+
+
 #: The disturbances with a numeric level option (all but the turbulence, which also takes a name).
 LEVEL_NAMES: tuple[str, ...] = tuple(d.name for d in DISTURBANCES if d.name != "turbulence")
 

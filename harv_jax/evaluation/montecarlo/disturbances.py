@@ -34,7 +34,7 @@ from typing import Any
 from harv_jax.dynamics.disturbances import DEFAULT_GUST_TAU_S
 from harv_jax.dynamics.turbulence import INTENSITIES
 from harv_jax.errors import UsageError
-from harv_jax.task.disturbance_table import BY_NAME, LEVEL_NAMES
+from harv_jax.task.disturbance_table import ADDED_NAMES, BY_NAME, LEVEL_NAMES
 from harv_jax.task.spec import DT_S
 
 #: Disturbance names with a numeric level, in the table's order.
@@ -88,6 +88,8 @@ class DisturbanceSpec:
         controller_knows_aircraft: build the model-based controllers on the plant's own (randomized)
             aircraft instead of the nominal one.
         turbulence: Dryden turbulence: ``none``, an intensity name or a sigma in ft/s (``parse_turbulence``).
+        added: (name, level) of each disturbance added to the table that is on
+            (``dynamics.disturbance_model``).
     """
 
     noise_scale: float = 0.0
@@ -98,6 +100,7 @@ class DisturbanceSpec:
     actuator_lag_s: float = 0.0
     controller_knows_aircraft: bool = False
     turbulence: str = "none"
+    added: tuple[tuple[str, float], ...] = ()
 
     @property
     def levels(self) -> dict[str, float]:
@@ -108,6 +111,7 @@ class DisturbanceSpec:
             "gust": self.gust_fps,
             "model": self.model_error,
             "lag": self.actuator_lag_s,
+            **dict(self.added),
         }
 
     @property
@@ -124,7 +128,13 @@ class DisturbanceSpec:
     @property
     def in_loop(self) -> bool:
         """Whether noise, delay or gust act in the loop (the others change only the aircraft)."""
-        return self.noise_scale > 0 or self.delay_steps > 0 or self.gust_fps > 0 or self.turbulence != "none"
+        return (
+            self.noise_scale > 0
+            or self.delay_steps > 0
+            or self.gust_fps > 0
+            or self.turbulence != "none"
+            or any(level > 0 for _, level in self.added)
+        )
 
     def as_dict(self) -> dict[str, Any]:
         """The spec as summary.json records it."""
@@ -214,6 +224,7 @@ def parse_disturbances(
         actuator_lag_s=lv["lag"],
         controller_knows_aircraft=controller_knows_aircraft,
         turbulence=parse_turbulence(turbulence),
+        added=tuple((n, lv[n]) for n in ADDED_NAMES if n in on),
     )
 
 

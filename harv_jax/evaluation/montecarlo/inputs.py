@@ -25,6 +25,7 @@ from harv_jax.dynamics.disturbances import DEFAULT_GUST_TAU_S, DEFAULT_NOISE_STD
 from harv_jax.dynamics.state import WIND_INDEX
 from harv_jax.dynamics.turbulence import INTENSITIES, TurbulenceParams, turbulence_params
 from harv_jax.evaluation.montecarlo.disturbances import DisturbanceSpec
+from harv_jax.task.disturbance_table import added_models
 from harv_jax.task.scenarios import sample_table_states
 from harv_jax.task.spec import H0_FT
 
@@ -124,6 +125,8 @@ def sample_mc_inputs(
             gust_std_fps=jnp.full((n_runs,), spec.gust_fps, dtype),
             gust_tau_s=tau.astype(dtype),
             turbulence=_turbulence(spec.turbulence, params.b, n_runs, dtype),
+            added_levels={name: jnp.full((n_runs,), level, dtype) for name, level in spec.added},
+            added_models=added_models([name for name, _ in spec.added]),
         )
         disturbance_keys = jax.random.split(jax.random.fold_in(key, _DISTURBANCE_KEY_TAG), n_runs)
     return MCInputs(

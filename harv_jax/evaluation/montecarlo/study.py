@@ -27,6 +27,7 @@ from harv_jax.evaluation.montecarlo.rollout import MCRunOutput, run_mc, sample_m
 from harv_jax.evaluation.summary import mc_summary, summarize_controller
 from harv_jax.numfmt import fmt_num, write_json
 from harv_jax.task.criteria import OUTCOME_NAMES
+from harv_jax.task.disturbance_table import BY_NAME
 from harv_jax.task.spec import DT_S, H0_FT
 from harv_jax.task.turbulent_criterion import criterion_record
 
@@ -154,8 +155,8 @@ def write_runs_csv(
     path: Path, x0: np.ndarray, outs: dict[str, MCRunOutput], disturbances: DisturbanceSpec | None = None
 ) -> None:
     """One row per (controller, run): initial state, outcome, metrics; with disturbances on, their levels
-    (``noise_scale``, ``delay_ms``, ``gust_fps``, ``model_error``, ``actuator_lag_s``, ``turbulence``) as the
-    last columns."""
+    (``noise_scale``, ``delay_ms``, ``gust_fps``, ``model_error``, ``actuator_lag_s``, the level option of
+    each disturbance added to the table that is on, ``turbulence``) as the last columns."""
 
     header = (
         ["controller", "run"]
@@ -176,7 +177,9 @@ def write_runs_csv(
     )
     extra: list[str] = []
     if disturbances is not None and disturbances.active:
-        header += ["noise_scale", "delay_ms", "gust_fps", "model_error", "actuator_lag_s", "turbulence"]
+        added = [BY_NAME[name].parameter for name, _ in disturbances.added]
+        header += ["noise_scale", "delay_ms", "gust_fps", "model_error", "actuator_lag_s"]
+        header += [*added, "turbulence"]
         extra = [f"{v:g}" for v in disturbances.levels.values()] + [disturbances.turbulence]
     with atomic.open_atomic(path, "w", newline="") as f:
         w = csv.writer(f)
