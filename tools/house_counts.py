@@ -95,7 +95,9 @@ def preset_keys() -> dict[str, list[str]]:
     keys["reward"] = _dataclass_fields(_parse("harv_jax/env/reward_params.py"), "RewardParams")
     config = _parse("harv_jax/env/config.py")
     aircraft = _dataclass_fields(_parse("harv_jax/aircraft/randomize.py"), "AircraftRandomization")
-    keys["randomization"] = aircraft + _dataclass_fields(config, "RandomizationParams")
+    # added_max holds the keys of the disturbances a table row adds (none in the shipped table), not a key
+    rand = [k for k in _dataclass_fields(config, "RandomizationParams") if k != "added_max"]
+    keys["randomization"] = aircraft + rand
     keys["spin"] = _dataclass_fields(settings, "SpinSettings")
     keys["eval"] = _dataclass_fields(settings, "EvalSettings")
     return keys
