@@ -203,11 +203,11 @@ def make_env(config: EnvConfig | None = None) -> Env:
         return _wrap_angles(x0), delta0
 
     def _observe(dist: DisturbanceState, x_wind: jnp.ndarray, target_rad: jnp.ndarray, ep: EpisodeParams):
-        x_wind = disturbance_model.measure(ep.added_models, x_wind, dist.added, ep.added_levels)
-        obs = clean_observation(x_wind, target_rad)
+        # as ``disturbed_step.measured``: the noise, then the disturbances added to the table
         if dist.noise_normals is not None:
-            obs = obs.at[:NUM_MEASURED].add(randomize.sensor_noise(dist.noise_normals, ep))
-        return finish_observation(obs)
+            x_wind = x_wind.at[:NUM_MEASURED].add(randomize.sensor_noise(dist.noise_normals, ep))
+        x_wind = disturbance_model.measure(ep.added_models, x_wind, dist.added, ep.added_levels)
+        return finish_observation(clean_observation(x_wind, target_rad))
 
     def _uniform(key: jax.Array, n: int, params: EnvParams) -> jnp.ndarray:
         dtype = params.reset.low.dtype

@@ -18,6 +18,7 @@ row (``docs/robustness.md``, "Adding a disturbance").
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from harv_jax.dynamics.disturbance_model import DisturbanceModel, Models
@@ -130,16 +131,26 @@ DISTURBANCES: tuple[Disturbance, ...] = (
 
 #: The rows by name.
 BY_NAME: dict[str, Disturbance] = {d.name: d for d in DISTURBANCES}
+
+
+def _added_names() -> tuple[str, ...]:
+    """The rows with a model, in the table's order; ValueError for one without its one
+    ``[randomization]`` key or its sweep levels."""
+    added = [d for d in DISTURBANCES if d.model is not None]
+    for d in added:
+        if len(d.randomization) != 1 or not d.sweep:
+            raise ValueError(f"disturbance {d.name!r}: a model needs one [randomization] key, sweep levels")
+    return tuple(d.name for d in added)
+
+
 #: The disturbances added to the built-in ones (a row with a model), in the table's order.
-ADDED_NAMES: tuple[str, ...] = tuple(d.name for d in DISTURBANCES if d.model is not None)
-for _d in DISTURBANCES:
-    if _d.model is not None and (len(_d.randomization) != 1 or not _d.sweep):
-        raise ValueError(f"disturbance {_d.name!r}: a model needs one [randomization] key, sweep levels")
+ADDED_NAMES: tuple[str, ...] = _added_names()
 
 
-def added_models(names) -> Models:
+def added_models(names: Iterable[str]) -> Models:
     """The models of the added disturbances among ``names``, in the table's order."""
-    return tuple((n, BY_NAME[n].model) for n in ADDED_NAMES if n in names)
+    wanted = set(names)
+    return tuple((n, BY_NAME[n].model) for n in ADDED_NAMES if n in wanted)
 
 
 #: The disturbances with a numeric level option (all but the turbulence, which also takes a name).

@@ -127,7 +127,8 @@ class DisturbanceSpec:
 
     @property
     def in_loop(self) -> bool:
-        """Whether noise, delay or gust act in the loop (the others change only the aircraft)."""
+        """Whether noise, delay, gust, turbulence or an added disturbance act in the loop (model error and lag
+        change only the aircraft)."""
         return (
             self.noise_scale > 0
             or self.delay_steps > 0
