@@ -69,12 +69,16 @@ class ControllerEntry:
         loop: for a controller that flies a policy, the loop it flies it in (``none``: alone,
             ``hybrid:<schedule>``), compared with the loop the policy was trained in
             (``harv_jax.training.in_loop``); None: no policy.
+        build_behind: (ControllerOptions, MeasurementPath) -> the controller built behind the path a name's
+            suffix gives (``policy_controller``: the hybrid then takes its path gains); None: ``build``'s
+            controller, wrapped in the path.
     """
 
     build: Callable[[ControllerOptions], Controller]
     options: tuple[str, ...] = ()
     help: str = ""
     loop: Callable[[ControllerOptions], str] | None = None
+    build_behind: Callable[[ControllerOptions, MeasurementPath], Controller] | None = None
 
 
 def _build_smc(opts: ControllerOptions) -> Controller:
@@ -127,9 +131,10 @@ def policy_controller(
     return ctrl if path is None else with_measurement_path(ctrl, path)
 
 
-def _build_rl(opts: ControllerOptions) -> Controller:
+def _build_rl(opts: ControllerOptions, path: MeasurementPath | None = None) -> Controller:
     pol = _policy(opts.policy)
-    return policy_controller("rl", pol.deterministic, opts.zeta, policy_path(pol))
+    path = path if path is not None else policy_path(pol)
+    return policy_controller("rl", pol.deterministic, opts.zeta, path)
 
 
 def _hybrid_zeta(opts: ControllerOptions) -> str:
@@ -139,22 +144,28 @@ def _hybrid_zeta(opts: ControllerOptions) -> str:
     return opts.zeta
 
 
-def _build_hybrid(opts: ControllerOptions) -> Controller:
+def _build_hybrid(opts: ControllerOptions, path: MeasurementPath | None = None) -> Controller:
     pol = _policy(opts.policy)
-    return policy_controller("hybrid", pol.deterministic, _hybrid_zeta(opts), policy_path(pol))
+    path = path if path is not None else policy_path(pol)
+    return policy_controller("hybrid", pol.deterministic, _hybrid_zeta(opts), path)
 
 
 #: The controllers, in help order.
 CONTROLLERS: dict[str, ControllerEntry] = {
     "smc": ControllerEntry(_build_smc, ("switching",), "sliding-mode control (harv_jax.control.smc)"),
     "rl": ControllerEntry(
-        _build_rl, ("policy",), "the learned policy alone (harv_jax.control.rl)", lambda opts: "none"
+        _build_rl,
+        ("policy",),
+        "the learned policy alone (harv_jax.control.rl)",
+        lambda opts: "none",
+        _build_rl,
     ),
     "hybrid": ControllerEntry(
         _build_hybrid,
         ("policy", "zeta"),
         "policy + SMC feedback, scheduled by zeta (harv_jax.control.hybrid.law)",
         lambda opts: f"hybrid:{opts.zeta}",
+        _build_hybrid,
     ),
     "smc-brake": ControllerEntry(
         _build_smc_brake,
@@ -262,8 +273,8 @@ def policy_path(policy: Any) -> MeasurementPath | None:
 def build_controller(name: str, options: ControllerOptions | None = None) -> Controller:
     """The controller ``name`` built with ``options``; UsageError for an unknown name or bad option. A
     policy that carries its measurement path flies behind it (``rl``, ``hybrid``); a suffix on such a
-    policy's controller is refused. Behind a path, carried or by suffix, the hybrid is
-    ``policy_controller``'s."""
+    policy's controller is refused. Behind a path, carried or by suffix, the policy-flown controllers are
+    ``policy_controller``'s (``ControllerEntry.build_behind``)."""
     base, path = split_filter(name)
     if base not in CONTROLLERS:
         raise _unknown(name)
@@ -278,10 +289,10 @@ def build_controller(name: str, options: ControllerOptions | None = None) -> Con
                 f"controller {name!r}: the policy {options.policy or 'shipped'!r} carries its measurement "
                 f"path ({rec['kind']} {rec['bandwidth_hz']:g} Hz) and flies behind it; drop the suffix"
             )
-    if path is not None and base == "hybrid":
-        zeta = _hybrid_zeta(options)
-        return policy_controller("hybrid", _policy(options.policy).deterministic, zeta, path)
-    ctrl = CONTROLLERS[base].build(options)
+    entry = CONTROLLERS[base]
+    if path is not None and entry.build_behind is not None:
+        return entry.build_behind(options, path)
+    ctrl = entry.build(options)
     return ctrl if path is None else with_measurement_path(ctrl, path)
 
 
