@@ -177,9 +177,7 @@ def write_runs_csv(
     )
     extra: list[str] = []
     if disturbances is not None and disturbances.active:
-        added = [BY_NAME[name].parameter for name, _ in disturbances.added]
-        header += ["noise_scale", "delay_ms", "gust_fps", "model_error", "actuator_lag_s"]
-        header += [*added, "turbulence"]
+        header += [BY_NAME[name].parameter for name in disturbances.levels] + ["turbulence"]
         extra = [f"{v:g}" for v in disturbances.levels.values()] + [disturbances.turbulence]
     with atomic.open_atomic(path, "w", newline="") as f:
         w = csv.writer(f)
