@@ -85,7 +85,7 @@ def air_relative(body: BodyState, wind_fps: jnp.ndarray) -> jnp.ndarray:
 
 def air_data(body: BodyState, state: DisturbanceState, levels: dist.DisturbanceParams) -> AirData:
     """The air data of ``body`` in the gust and turbulence of ``state``."""
-    wind, pqr = added_wind(state, levels), None
+    wind, pqr = body_wind_fps(state, levels), None
     if levels.turbulence is not None:
         uvw, p = turb.turbulence_velocity(state.turbulence, levels.turbulence, body.pos_ft[2])
         ned = turb.turbulence_ned(uvw, state.heading0_rad)
@@ -94,8 +94,9 @@ def air_data(body: BodyState, state: DisturbanceState, levels: dist.DisturbanceP
     return AirData(air_relative(body, wind), wind, pqr)
 
 
-def added_wind(state: DisturbanceState, levels: dist.DisturbanceParams) -> jnp.ndarray:
-    """[3] the body-axis gust plus the air velocity of the disturbances added to the table, ft/s."""
+def body_wind_fps(state: DisturbanceState, levels: dist.DisturbanceParams) -> jnp.ndarray:
+    """[3] the body-axis wind besides the turbulence: the gust plus the air velocity of the disturbances
+    added to the table, ft/s."""
     added = dm.added_wind_fps(levels.added_models, state.added, levels.added_levels)
     return state.gust_fps if added is None else state.gust_fps + added
 

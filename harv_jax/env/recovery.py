@@ -61,8 +61,8 @@ from harv_jax.dynamics import BodyState, disturbance_model, from_wind, is_finite
 from harv_jax.dynamics.disturbed_step import (
     AirData,
     DisturbanceState,
-    added_wind,
     air_data,
+    body_wind_fps,
     disturbance_init,
     disturbed_plant_step,
     initial_heading,
@@ -292,7 +292,7 @@ def make_env(config: EnvConfig | None = None) -> Env:
         if turbulence:
             air = air_data(state.aircraft, dist, levels)
         else:  # the paper's env: the aircraft flies the gust, the env sees the inertial state
-            air = AirData(state.wind, added_wind(dist, levels), None)
+            air = AirData(state.wind, body_wind_fps(dist, levels), None)
         ps, dist = disturbed_plant_step(
             state.aircraft, state.delta_rad, dist, cmd, air, ac, levels, dt_s, key if dr else None
         )
