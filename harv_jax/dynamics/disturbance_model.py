@@ -55,6 +55,8 @@ def model_key(key: jax.Array, name: str) -> jax.Array:
 
 def init_states(models: Models, levels: dict[str, jnp.ndarray], key: jax.Array | None) -> dict[str, Any]:
     """Each model's state at engagement (``key`` None: every model's init from a fixed key)."""
+    if not models:
+        return {}
     base = jax.random.key(0) if key is None else key
     return {name: m.init(levels[name], model_key(base, name)) for name, m in models}
 
