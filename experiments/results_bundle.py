@@ -23,30 +23,36 @@ from pathlib import Path
 from typing import Any
 
 
-def load(bundle: Path) -> dict[str, Any]:
-    """The bundle's files, KEY -> DOCUMENT (empty for a bundle not yet written)."""
+def _read(bundle: Path) -> dict[str, Any]:
+    """The whole bundle, ``{"about": ..., "files": ...}`` (empty for a bundle not yet written)."""
     if not bundle.exists():
-        return {}
+        return {"about": "", "files": {}}
     doc = json.loads(bundle.read_text())
     if not isinstance(doc, dict) or not isinstance(doc.get("files"), dict):
         raise ValueError(f"{bundle}: not a results bundle (a JSON object with 'about' and 'files')")
-    return doc["files"]
+    return doc
 
 
-def _write(bundle: Path, files: dict[str, Any], about: str | None) -> None:
-    old_about = json.loads(bundle.read_text()).get("about", "") if bundle.exists() else ""
-    doc = {"about": about if about is not None else old_about, "files": dict(sorted(files.items()))}
+def load(bundle: Path) -> dict[str, Any]:
+    """The bundle's files, KEY -> DOCUMENT (empty for a bundle not yet written)."""
+    return _read(bundle)["files"]
+
+
+def _write(bundle: Path, doc: dict[str, Any], about: str | None) -> None:
+    """Write ``doc``'s files (in key order) with ``about`` (None: the one ``doc`` holds)."""
+    about = doc.get("about", "") if about is None else about
+    out = {"about": about, "files": dict(sorted(doc["files"].items()))}
     tmp = bundle.with_name(bundle.name + ".tmp")
-    tmp.write_text(json.dumps(doc, indent=1) + "\n")
+    tmp.write_text(json.dumps(out, indent=1) + "\n")
     os.replace(tmp, bundle)
 
 
 def add(bundle: Path, key: str, document: Any, about: str | None = None) -> None:
     """Store ``document`` under ``key`` (replacing an entry of that key)."""
-    files = load(bundle)
-    files[key] = document
+    doc = _read(bundle)
+    doc["files"][key] = document
     bundle.parent.mkdir(parents=True, exist_ok=True)
-    _write(bundle, files, about)
+    _write(bundle, doc, about)
 
 
 def select(bundle: Path, pattern: str = "*") -> dict[str, Any]:
@@ -61,13 +67,13 @@ def pack(folder: Path, bundle: Path, pattern: str, about: str | None) -> list[st
         for p in sorted(folder.rglob("*.json"))
         if fnmatch.fnmatchcase(p.relative_to(folder).as_posix(), pattern) and p.resolve() != bundle.resolve()
     ]
-    files = load(bundle)
+    bundled = _read(bundle)
     docs = {p.relative_to(folder).as_posix(): json.loads(p.read_text()) for p in paths}
-    clash = sorted(set(docs) & set(files))
+    clash = sorted(set(docs) & set(bundled["files"]))
     if clash:
         raise SystemExit(f"pack: {bundle} already holds {clash[0]}; allowed: keys it does not hold")
-    files.update(docs)
-    _write(bundle, files, about)
+    bundled["files"].update(docs)
+    _write(bundle, bundled, about)
     stored = load(bundle)
     for p in paths:
         key = p.relative_to(folder).as_posix()
