@@ -124,7 +124,6 @@ def _spin_runner(n_steps: int):
 
 
 def _certificate(info: dict, traj: Any, params: Any, switching: str, n_run: int) -> dict[str, Any]:
-
     g = default_gains()
     z = info["zeta"] if "zeta" in info else np.ones(n_run)
     args = (info["s"], z, info["w_mu"], g.k_reach, g.eps_radps2, g.phi_radps, DT_S, switching)
